@@ -1,0 +1,1 @@
+"""Drivers: bytes and frames from the wires in, typed timestamped samples out."""

@@ -1,0 +1,93 @@
+"""Typed, timestamped samples that the drivers hand to the fusion loop.
+
+Everything here is SI (rad, rad/s, m, m/s, m/s^2, s) in the body frame FRD or the local
+navigation frame NED. Times are host-clock UTC seconds (the clock both logs share, SPEC 3).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+
+import numpy as np
+import numpy.typing as npt
+
+Vec3 = npt.NDArray[np.float64]
+
+
+class FixQuality(IntEnum):
+    """GGA fix quality indicator (NMEA 0183), also sent in NAVGW_STATUS byte 3."""
+
+    NONE = 0
+    GNSS = 1
+    DGNSS = 2
+    PPS = 3
+    RTK_FIXED = 4
+    RTK_FLOAT = 5
+    DEAD_RECKONING = 6
+    MANUAL = 7
+    SIMULATION = 8
+
+
+@dataclass(frozen=True, slots=True)
+class ImuSample:
+    """One IMU output sample (gyro and accel of the same SEQ), body frame FRD, SI.
+
+    ``t`` is the sample time on the host clock, reconstructed from SEQ and DEC and anchored
+    to frame arrival (so CAN jitter does not enter ``dt``); ``dt`` is the nominal sample
+    period 2^DEC / 819.2 Hz that this sample closes.
+    """
+
+    t: float
+    dt: float
+    w_ib_b: Vec3  # rad/s, shape (3,), after the mounting rotation
+    f_ib_b: Vec3  # m/s^2, shape (3,), specific force, after the mounting rotation
+    seq: int
+    alarm: bool = False  # EA bit of any output word: some DIAG_STAT flag is set
+    saturated: bool = False  # some axis at the end of its 14-bit register range
+
+
+@dataclass(frozen=True, slots=True)
+class ImuAux:
+    """IMU_AUX contents (1 Hz): temperature, supply and diagnostics."""
+
+    t: float
+    temp_c: float
+    supply_v: float
+    diag_stat: int  # DIAG_STAT register bits as sent (SPEC 1)
+    smpl_prd: int
+
+
+@dataclass(frozen=True, slots=True)
+class GnssFix:
+    """One receiver epoch, combining the NMEA sentences that describe it.
+
+    ``t`` is the host receive time of the epoch (last sentence of the epoch, or the
+    sentence's own UTC time when the log line has no host stamp); ``t_utc`` the epoch's
+    UTC time from the sentences (None if the receiver gave no time). Optional fields are
+    None when the receiver did not send them.
+    """
+
+    t: float
+    t_utc: float | None
+    quality: FixQuality
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    alt_m: float | None = None  # ellipsoidal height = GGA altitude (MSL) + geoid separation
+    num_sats: int | None = None
+    hdop: float | None = None
+    age_s: float | None = None  # age of differential corrections
+    sog_mps: float | None = None  # speed over ground
+    cog_rad: float | None = None  # course over ground, true, [0, 2 pi)
+    heading_rad: float | None = None  # HDT true heading (dual antenna)
+    sigma_n_m: float | None = None  # GST 1-sigma north
+    sigma_e_m: float | None = None  # GST 1-sigma east
+    sigma_d_m: float | None = None  # GST 1-sigma down
+    mode: str | None = None  # RMC/VTG mode indicator: A, D, R, F, E, N, ...
+
+    @property
+    def vel_ne_mps(self) -> tuple[float, float] | None:
+        """Horizontal velocity (north, east) from SOG and COG, None without both."""
+        if self.sog_mps is None or self.cog_rad is None:
+            return None
+        return (self.sog_mps * float(np.cos(self.cog_rad)), self.sog_mps * float(np.sin(self.cog_rad)))

@@ -1,0 +1,91 @@
+"""The estimator interface and the solution every engine (observer, EKF) produces.
+
+Engines are plain classes fed timestamped samples (no I/O, no clock of their own), so the
+live service, replay and tests run the same code; the engine is a config choice.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from enum import IntEnum
+from typing import Protocol
+
+import numpy as np
+
+from drivers.samples import FixQuality, GnssFix, ImuSample, Vec3
+
+
+class Mode(IntEnum):
+    """Navigation mode, NAVGW_STATUS byte 2 (SPEC 4)."""
+
+    INITIALISING = 0
+    ALIGNING = 1
+    NAVIGATING = 2
+    COASTING = 3  # inertial only through a GNSS outage
+    DEGRADED = 4
+    FAULT = 5
+
+
+@dataclass(frozen=True, slots=True)
+class Convergence:
+    """Estimator flags, NAVGW_STATUS byte 5."""
+
+    gyro_xy: bool = False
+    gyro_z: bool = False
+    accel_xy: bool = False
+    learning_frozen: bool = False
+
+
+@dataclass(frozen=True, slots=True)
+class Solution:
+    """Corrected attitude and reference-point navigation at time ``t`` (host clock, s).
+
+    A quantity the engine does not know yet is None (sent as "not available", never as a
+    made-up zero). Position and velocity are of the vehicle reference point, not the antenna.
+    """
+
+    t: float
+    mode: Mode
+    roll_rad: float | None = None
+    pitch_rad: float | None = None
+    yaw_rad: float | None = None  # true heading, [0, 2 pi)
+    yaw_rate_rps: float | None = None  # bias-corrected rate of turn, clockwise positive
+    lat_deg: float | None = None
+    lon_deg: float | None = None
+    alt_m: float | None = None  # ellipsoidal height
+    vel_ned_mps: tuple[float, float, float] | None = None
+    bias_g_rps: Vec3 | None = None  # gyro bias estimate, body FRD
+    bias_a_mps2: Vec3 | None = None  # accelerometer bias estimate, body FRD
+    sigma_tilt_rad: float | None = None  # roll/pitch 1-sigma
+    fix_quality: FixQuality | None = None  # of the last GNSS fix used
+    num_sats: int | None = None
+    hdop: float | None = None
+    age_s: float | None = None
+    gnss_ok: bool = False
+    imu_ok: bool = False
+    imu_alarm: bool = False
+    reversing: bool = False
+    stationary: bool = False
+    is_ekf: bool = False
+    convergence: Convergence = Convergence()
+
+    @property
+    def cog_sog(self) -> tuple[float, float] | None:
+        """Reference-point course over ground (rad, true, [0, 2 pi)) and speed (m/s)."""
+        if self.vel_ned_mps is None:
+            return None
+        vn, ve, _ = self.vel_ned_mps
+        return float(np.arctan2(ve, vn) % (2 * np.pi)), float(np.hypot(vn, ve))
+
+
+class Estimator(Protocol):
+    """What the fusion loop needs from an engine: feed samples, read the solution."""
+
+    def imu(self, sample: ImuSample) -> None:
+        """Propagate with one IMU sample (samples arrive in time order)."""
+
+    def gnss(self, fix: GnssFix) -> None:
+        """Correct with one GNSS epoch (may arrive after IMU samples of later time)."""
+
+    def solution(self) -> Solution:
+        """The current solution, at the time of the last IMU sample."""

@@ -1,0 +1,29 @@
+"""Geodesy round trips and hand-checked distances."""
+
+import numpy as np
+from numpy.testing import assert_allclose
+
+from gateway.geodesy import A_M, E2, ecef_to_lla, lla_to_ecef, lla_to_ned, ned_to_lla
+
+ORIGIN = np.array([52.2, 10.5, 80.0])
+
+
+def test_round_trip_ned_lla_over_a_field() -> None:
+    rng = np.random.default_rng(1)
+    ned = rng.uniform(-3000.0, 3000.0, size=(200, 3)) * [1, 1, 0.01]
+    back = lla_to_ned(ned_to_lla(ned, ORIGIN), ORIGIN)
+    assert_allclose(back, ned, atol=1e-6)
+
+
+def test_ecef_round_trip_includes_poles_and_heights() -> None:
+    lla = np.array([[89.9, -170.0, 1000.0], [-45.0, 0.0, -50.0], [0.0, 179.0, 0.0]])
+    assert_allclose(ecef_to_lla(lla_to_ecef(lla)), lla, atol=1e-9)
+
+
+def test_one_arcsecond_north_matches_meridian_radius() -> None:
+    lat = np.radians(ORIGIN[0])
+    m_radius = A_M * (1 - E2) / (1 - E2 * np.sin(lat) ** 2) ** 1.5
+    ned = lla_to_ned(ORIGIN + [1 / 3600, 0.0, 0.0], ORIGIN)
+    assert_allclose(ned[0], (m_radius + ORIGIN[2]) * np.radians(1 / 3600), rtol=1e-6)
+    assert abs(ned[1]) < 1e-9
+    assert abs(ned[2]) < 1e-3  # earth curvature over 31 m: 0.07 mm
