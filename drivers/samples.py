@@ -90,4 +90,7 @@ class GnssFix:
         """Horizontal velocity (north, east) from SOG and COG, None without both."""
         if self.sog_mps is None or self.cog_rad is None:
             return None
-        return (self.sog_mps * float(np.cos(self.cog_rad)), self.sog_mps * float(np.sin(self.cog_rad)))
+        return (
+            self.sog_mps * float(np.cos(self.cog_rad)),
+            self.sog_mps * float(np.sin(self.cog_rad)),
+        )

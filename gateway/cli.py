@@ -37,8 +37,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``navgw`` console script; returns the exit status."""
     parser = build_parser()
     args = parser.parse_args(argv)
+    level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
     logging.basicConfig(
-        level=logging.DEBUG if args.verbose > 1 else logging.INFO if args.verbose else logging.WARNING,
+        level=level,
         format="%(levelname)s %(name)s: %(message)s",
     )
     if not getattr(args, "func", None):
