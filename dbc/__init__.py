@@ -28,4 +28,6 @@ def path(name: str) -> Path:
 @cache
 def load(name: str) -> cantools.database.can.Database:
     """Load (once) a shipped DBC file, matching frames by PGN regardless of priority and SA."""
-    return cantools.database.load_file(path(name), frame_id_mask=PGN_MASK)
+    db = cantools.database.load_file(path(name), frame_id_mask=PGN_MASK)
+    assert isinstance(db, cantools.database.can.Database), f"{name} is not a CAN database"
+    return db

@@ -65,7 +65,8 @@ class Truth:
 
     def save(self, path: str | Path) -> None:
         """Write all columns and scalars to an uncompressed ``.npz`` file."""
-        np.savez(Path(path), **{f.name: np.asarray(getattr(self, f.name)) for f in fields(self)})
+        columns = {f.name: np.asarray(getattr(self, f.name)) for f in fields(self)}
+        np.savez(Path(path), allow_pickle=False, **columns)
 
     @classmethod
     def load(cls, path: str | Path) -> Truth:
