@@ -1,0 +1,104 @@
+"""Build typed config dataclasses from TOML tables, with messages that name the problem.
+
+One generic validator serves every section: it checks unknown keys, types and 3-vectors,
+and reports ``file: [section] key = value: expected ...`` so a user can fix the file.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import enum
+import types
+import typing
+from typing import Any, TypeVar, Union
+
+T = TypeVar("T")
+
+
+class ConfigError(ValueError):
+    """A config file or value is wrong; the message says which key, the value and what fits."""
+
+
+def _describe(tp: Any) -> str:
+    origin = typing.get_origin(tp)
+    if origin in (Union, types.UnionType):
+        return " or ".join(_describe(a) for a in typing.get_args(tp))
+    if origin is tuple:
+        args = typing.get_args(tp)
+        return f"a list of {len(args)} numbers" if args else "a list"
+    if tp is type(None):
+        return "absent"
+    return {float: "a number", int: "an integer", bool: "true or false", str: "a string"}.get(
+        tp, getattr(tp, "__name__", str(tp))
+    )
+
+
+def _convert(value: Any, tp: Any, where: str) -> Any:
+    """Return ``value`` as type ``tp`` or raise ConfigError naming ``where``."""
+    origin = typing.get_origin(tp)
+    if origin in (Union, types.UnionType):
+        for arg in typing.get_args(tp):
+            if arg is type(None):
+                continue
+            try:
+                return _convert(value, arg, where)
+            except ConfigError:
+                pass
+        raise ConfigError(f"{where} = {value!r}: expected {_describe(tp)}")
+    if origin is tuple:
+        args = typing.get_args(tp)
+        if not isinstance(value, list | tuple) or len(value) != len(args):
+            raise ConfigError(f"{where} = {value!r}: expected {_describe(tp)}")
+        pairs = enumerate(zip(value, args, strict=True))
+        return tuple(_convert(v, a, f"{where}[{i}]") for i, (v, a) in pairs)
+    if dataclasses.is_dataclass(tp) and isinstance(tp, type):
+        if not isinstance(value, dict):
+            raise ConfigError(f"{where} = {value!r}: expected a table [{where}]")
+        return from_table(tp, value, where)
+    if tp is float and isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    if tp is int and isinstance(value, int) and not isinstance(value, bool):
+        return value
+    if tp in (bool, str) and isinstance(value, tp):
+        return value
+    if isinstance(tp, type) and issubclass(tp, enum.Enum):
+        try:
+            return tp(value)
+        except ValueError:
+            choices = ", ".join(repr(m.value) for m in list(tp))
+            raise ConfigError(f"{where} = {value!r}: expected one of {choices}") from None
+    raise ConfigError(f"{where} = {value!r}: expected {_describe(tp)}")
+
+
+def from_table(cls: type[T], table: dict[str, Any], where: str = "") -> T:
+    """Instantiate dataclass ``cls`` from a TOML table; unknown keys are errors that name them.
+
+    Fields may carry ``metadata={"check": fn}`` where ``fn(value)`` returns an error text
+    (what is expected) or None; it runs after type conversion.
+    """
+    hints = typing.get_type_hints(cls)
+    known = {f.name: f for f in dataclasses.fields(cls)}  # type: ignore[arg-type]
+    prefix = f"{where}." if where else ""
+    for key in table:
+        if key not in known:
+            raise ConfigError(
+                f"unknown key {prefix}{key}: expected one of {', '.join(sorted(known))}"
+            )
+    kwargs = {}
+    for key, value in table.items():
+        converted = _convert(value, hints[key], f"{prefix}{key}")
+        check = known[key].metadata.get("check")
+        if check is not None and (problem := check(converted)):
+            raise ConfigError(f"{prefix}{key} = {value!r}: expected {problem}")
+        kwargs[key] = converted
+    return cls(**kwargs)
+
+
+def in_range(lo: float, hi: float) -> dict[str, Any]:
+    """Field metadata: the value (or every element) must lie in [lo, hi]."""
+
+    def check(value: Any) -> str | None:
+        values = value if isinstance(value, tuple) else (value,)
+        return None if all(lo <= v <= hi for v in values) else f"a value in [{lo}, {hi}]"
+
+    return {"check": check}
