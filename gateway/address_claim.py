@@ -1,0 +1,214 @@
+"""ISO 11783-5 / J1939-81 address claim as a pure state machine (no I/O, no clock).
+
+The service loop drives it with received frames and its own notion of time, and sends what
+it returns::
+
+    claimer = AddressClaimer(Name(identity_number=serial))
+    send(claimer.start(now))
+    for each received frame:  send(claimer.on_frame(frame, now))
+    periodically:             send(claimer.poll(now))
+    output frames only while claimer.claimed, with source address claimer.address
+
+Start-up: request for PGN 60928 (from 254 to 255), a random 0-153 ms wait (0.6 ms times a
+random byte, as AgIsoStack++ does), claim of the preferred address, 250 ms contention, then
+claimed. A competing claim for our address is won by the lower NAME: if ours is lower we
+re-send our claim; if not we claim the lowest free address of the self-configurable range
+128-247 (addresses claimed by others are tracked), or send cannot-claim from 254 and stop.
+Requests for 60928 (global or to our address) are answered. Frames carrying our own NAME are
+our own echo (udp_multicast and some adapters echo; can-j1939 floods the bus by treating
+them as a contender) and are ignored.
+"""
+
+from __future__ import annotations
+
+import random
+from dataclasses import dataclass
+from enum import Enum, IntEnum
+
+import can
+import cantools
+
+import dbc
+from gateway.frame_codec import FrameCodec
+from gateway.j1939 import (
+    DEFAULT_MANUFACTURER_CODE,
+    DEFAULT_SOURCE_ADDRESS,
+    GLOBAL_ADDRESS,
+    NETWORK_MANAGEMENT_PRIORITY,
+    NULL_ADDRESS,
+    FrameId,
+    IndustryGroup,
+    Pgn,
+    can_id,
+)
+
+SELF_CONFIGURABLE_ADDRESSES = range(128, 248)
+CONTENTION_S = 0.25
+DELAY_STEP_S = 0.0006  # random start-up wait: 0-255 steps, 0-153 ms
+_PGN_BYTES = 3  # a requested PGN is 3 bytes, little-endian
+
+
+class NameFunction(IntEnum):
+    """ISO 11783-1 / J1939 function codes (0-127 mean the same in every industry group)."""
+
+    VEHICLE_NAVIGATION = 23  # "system associated with the vehicle's physical location"
+
+
+class ClaimState(Enum):
+    """Where the claim procedure is."""
+
+    IDLE = "idle"  # start() not called yet
+    WAITING = "waiting"  # request sent, random wait before the first claim
+    CLAIMING = "claiming"  # claim sent, 250 ms contention running
+    CLAIMED = "claimed"  # address held: output may be sent
+    FAILED = "failed"  # no address free: cannot-claim sent, silent
+
+
+@dataclass(frozen=True, slots=True)
+class Name:
+    """The 64-bit ISO 11783 NAME; its bit layout is the DBC message ADDRESS_CLAIM."""
+
+    identity_number: int  # 21 bits, unique per unit (serial number)
+    manufacturer_code: int = DEFAULT_MANUFACTURER_CODE  # 11 bits
+    ecu_instance: int = 0  # 3 bits
+    function_instance: int = 0  # 5 bits
+    function: int = NameFunction.VEHICLE_NAVIGATION  # 8 bits
+    vehicle_system: int = 0  # 7 bits, 0 = non-specific system
+    vehicle_system_instance: int = 0  # 4 bits
+    industry_group: IndustryGroup = IndustryGroup.AGRICULTURE
+    arbitrary_address_capable: bool = True
+
+    def payload(self, database: cantools.database.can.Database | None = None) -> bytes:
+        """The 8 data bytes of an address claim (raises EncodeError if a field overflows)."""
+        message = (database or dbc.load(dbc.OUTPUT_DBC)).get_message_by_name("ADDRESS_CLAIM")
+        return FrameCodec(message).encode(
+            {
+                "IDENTITY_NUMBER": self.identity_number,
+                "MANUFACTURER_CODE": self.manufacturer_code,
+                "ECU_INSTANCE": self.ecu_instance,
+                "FUNCTION_INSTANCE": self.function_instance,
+                "FUNCTION": self.function,
+                "SPARE": 0,
+                "VEHICLE_SYSTEM": self.vehicle_system,
+                "VEHICLE_SYSTEM_INSTANCE": self.vehicle_system_instance,
+                "INDUSTRY_GROUP": self.industry_group,
+                "ARBITRARY_ADDRESS_CAPABLE": self.arbitrary_address_capable,
+            }
+        )
+
+    def value(self) -> int:
+        """The NAME as the 64-bit number that decides contention (lower wins)."""
+        return int.from_bytes(self.payload(), "little")
+
+
+class AddressClaimer:
+    """Claims and defends one source address; returns the frames to send."""
+
+    def __init__(
+        self,
+        name: Name,
+        preferred_address: int = DEFAULT_SOURCE_ADDRESS,
+        rng: random.Random | None = None,
+    ) -> None:
+        if not 0 <= preferred_address < NULL_ADDRESS:
+            raise ValueError(f"preferred address {preferred_address} is not 0-253")
+        self._name_bytes = name.payload()
+        self._name = int.from_bytes(self._name_bytes, "little")
+        self._arbitrary = name.arbitrary_address_capable
+        self._preferred = preferred_address
+        self._rng = rng or random.Random()
+        self._others: dict[int, int] = {}  # address -> NAME of the node holding it
+        self._deadline = 0.0
+        self.state = ClaimState.IDLE
+        self.address: int | None = None  # held or being claimed
+
+    @property
+    def claimed(self) -> bool:
+        """True while the address is held and output may be sent from it."""
+        return self.state is ClaimState.CLAIMED
+
+    @property
+    def name(self) -> int:
+        """Our NAME as a 64-bit number."""
+        return self._name
+
+    def start(self, now: float) -> list[can.Message]:
+        """Ask every node for its claim, then wait a random 0-153 ms before claiming."""
+        self.state = ClaimState.WAITING
+        self._deadline = now + self._rng.randrange(256) * DELAY_STEP_S
+        request = int(Pgn.ADDRESS_CLAIM).to_bytes(_PGN_BYTES, "little")
+        return [_message(Pgn.ISO_REQUEST, NULL_ADDRESS, request, now)]
+
+    def poll(self, now: float) -> list[can.Message]:
+        """Advance the timers: send the first claim, or end the contention period."""
+        if self.state is ClaimState.WAITING and now >= self._deadline:
+            held_by = self._others.get(self._preferred)
+            if held_by is None or held_by > self._name:
+                return self._claim(self._preferred, now)
+            return self._claim_free_or_give_up(now)
+        if self.state is ClaimState.CLAIMING and now >= self._deadline:
+            self.state = ClaimState.CLAIMED
+        return []
+
+    def on_frame(self, msg: can.Message, now: float) -> list[can.Message]:
+        """React to a received frame: track claims, defend our address, answer requests."""
+        if not msg.is_extended_id:
+            return []
+        frame_id = FrameId.parse(msg.arbitration_id)
+        if frame_id.pgn == Pgn.ADDRESS_CLAIM and len(msg.data) >= 8:
+            return self._on_claim(frame_id.source, int.from_bytes(msg.data[:8], "little"), now)
+        if (
+            frame_id.pgn == Pgn.ISO_REQUEST
+            and len(msg.data) >= _PGN_BYTES
+            and int.from_bytes(msg.data[:_PGN_BYTES], "little") == Pgn.ADDRESS_CLAIM
+            and frame_id.destination in (GLOBAL_ADDRESS, self.address)
+        ):
+            return self._answer_request(now)
+        return []
+
+    def _on_claim(self, source: int, name: int, now: float) -> list[can.Message]:
+        if name == self._name:
+            return []  # our own echo
+        self._others = {a: n for a, n in self._others.items() if n != name}
+        if source == NULL_ADDRESS:
+            return []  # someone else's cannot-claim
+        self._others[source] = name
+        if source != self.address or self.state not in (ClaimState.CLAIMING, ClaimState.CLAIMED):
+            return []
+        if self._name < name:
+            return [self._claim_message(source, now)]  # we win: defend
+        return self._claim_free_or_give_up(now)
+
+    def _answer_request(self, now: float) -> list[can.Message]:
+        if self.state in (ClaimState.CLAIMING, ClaimState.CLAIMED) and self.address is not None:
+            return [self._claim_message(self.address, now)]
+        if self.state is ClaimState.FAILED:
+            return [self._claim_message(NULL_ADDRESS, now)]
+        return []
+
+    def _claim_free_or_give_up(self, now: float) -> list[can.Message]:
+        free = [a for a in SELF_CONFIGURABLE_ADDRESSES if a not in self._others]
+        if self._arbitrary and free:
+            return self._claim(free[0], now)
+        self.state = ClaimState.FAILED
+        self.address = None
+        return [self._claim_message(NULL_ADDRESS, now)]  # cannot claim
+
+    def _claim(self, address: int, now: float) -> list[can.Message]:
+        self.state = ClaimState.CLAIMING
+        self.address = address
+        self._deadline = now + CONTENTION_S
+        return [self._claim_message(address, now)]
+
+    def _claim_message(self, source: int, now: float) -> can.Message:
+        return _message(Pgn.ADDRESS_CLAIM, source, self._name_bytes, now)
+
+
+def _message(pgn: Pgn, source: int, data: bytes, now: float) -> can.Message:
+    """A network-management frame to the global address."""
+    return can.Message(
+        timestamp=now,
+        arbitration_id=can_id(pgn, source, NETWORK_MANAGEMENT_PRIORITY, GLOBAL_ADDRESS),
+        is_extended_id=True,
+        data=data,
+    )

@@ -1,0 +1,240 @@
+"""Output encoders, checked with the independent ``nmea2000`` decoder (canboat's database)."""
+
+import math
+
+import can
+import numpy as np
+import pytest
+from hypothesis import given
+from hypothesis import strategies as st
+from nmea2000 import NMEA2000Decoder, backend
+
+from drivers.samples import FixQuality
+from gateway.j1939 import Pgn
+from gateway.n2k_encode import GNSS_METHOD_OF_FIX, LAYOUTS, LoopStatus, OutputEncoder
+from gateway.solution import Convergence, Mode, Solution
+
+T = 1_700_000_000.1234  # 2023-11-14 22:13:20.1234 UTC
+FULL = Solution(
+    t=T,
+    mode=Mode.NAVIGATING,
+    roll_rad=0.0123,
+    pitch_rad=-0.0456,
+    yaw_rad=4.0,  # > pi: 127257 sends it as 4 - 2 pi
+    yaw_rate_rps=-0.2345,
+    lat_deg=52.123456789012345,
+    lon_deg=-10.987654321098765,
+    alt_m=80.123456,
+    vel_ned_mps=(3.0, -4.0, 0.1),
+    bias_g_rps=np.radians([0.1234, -0.5, 4.0]),  # z beyond the +/-3.2764 deg/s field
+    bias_a_mps2=np.array([0.0123, -0.2, 1.5]),
+    sigma_tilt_rad=math.radians(0.37),
+    fix_quality=FixQuality.RTK_FIXED,
+    num_sats=17,
+    hdop=0.73,
+    age_s=1.4,
+    gnss_ok=True,
+    imu_ok=True,
+    is_ekf=True,
+    convergence=Convergence(gyro_xy=True, gyro_z=False, accel_xy=True, learning_frozen=False),
+)
+EMPTY = Solution(t=T, mode=Mode.INITIALISING)
+LOOP = LoopStatus(source_address=0x1C, address_claimed=True, imu_samples_lost=3)
+
+
+def decode(solution: Solution, loop: LoopStatus = LOOP, sid: int = 42) -> dict[str, dict]:
+    """The standard PGNs of ``solution`` through nmea2000: message id -> {field id: field}."""
+    encoder, decoder = OutputEncoder(), NMEA2000Decoder()
+    out = {}
+    for pgn in LAYOUTS:
+        for frame in encoder.frames(pgn, solution, loop, sid):
+            message = decoder.decode(frame)
+            if message is not None:
+                out[message.id] = {f.id: f for f in message.fields}
+    return out
+
+
+def value(decoded: dict[str, dict], message: str, field: str) -> object:
+    return decoded[message][field].value
+
+
+def test_standard_pgns_round_trip_within_one_lsb() -> None:
+    d = decode(FULL)
+    assert value(d, "attitude", "sid") == 42
+    assert value(d, "attitude", "yaw") == pytest.approx(4.0 - 2 * math.pi, abs=1e-4)
+    assert value(d, "attitude", "pitch") == pytest.approx(-0.0456, abs=1e-4)
+    assert value(d, "attitude", "roll") == pytest.approx(0.0123, abs=1e-4)
+    assert value(d, "rateOfTurn", "rate") == pytest.approx(-0.2345, abs=3.125e-8)
+    assert value(d, "vesselHeading", "heading") == pytest.approx(4.0, abs=1e-4)
+    assert value(d, "vesselHeading", "deviation") is None
+    assert value(d, "vesselHeading", "variation") is None
+    assert value(d, "vesselHeading", "reference") == "True"
+    assert value(d, "positionRapidUpdate", "latitude") == pytest.approx(52.1234568, abs=1e-7)
+    assert value(d, "positionRapidUpdate", "longitude") == pytest.approx(-10.9876543, abs=1e-7)
+    assert value(d, "cogSogRapidUpdate", "cogReference") == "True"
+    assert value(d, "cogSogRapidUpdate", "cog") == pytest.approx(
+        math.atan2(-4.0, 3.0) % (2 * math.pi), abs=1e-4
+    )
+    assert value(d, "cogSogRapidUpdate", "sog") == pytest.approx(5.0, abs=0.01)
+    for message in ("attitude", "rateOfTurn", "vesselHeading", "cogSogRapidUpdate"):
+        assert value(d, message, "sid") == 42
+
+
+def test_gnss_position_data_reassembled_full_precision() -> None:
+    d = decode(FULL)["gnssPositionData"]
+    assert d["sid"].value == 42
+    assert d["date"].raw_value == 19675  # days since 1970-01-01
+    assert d["time"].raw_value == pytest.approx(80000.1234, abs=1e-4)
+    assert d["latitude"].value == pytest.approx(52.123456789012345, abs=1e-14)
+    assert d["longitude"].value == pytest.approx(-10.987654321098765, abs=1e-14)
+    assert d["altitude"].value == pytest.approx(80.123456, abs=1e-6)
+    assert d["method"].value == "RTK Fixed Integer"
+    assert d["integrity"].value == "No integrity checking"
+    assert d["numberOfSvs"].value == 17
+    assert d["hdop"].value == pytest.approx(0.73, abs=0.01)
+    assert d["pdop"].value is None
+    assert d["geoidalSeparation"].value is None
+    assert d["referenceStations"].value == 1
+    station = d["##list##"].value[0]
+    assert station["ageOfDgnssCorrections"].value == pytest.approx(1.4, abs=0.01)
+    assert station["referenceStationId"].value is None
+
+
+def test_gnss_method_follows_canboat_enum_for_every_fix_quality() -> None:
+    labels = dict(backend.DATABASE.lookup("GNS_METHOD"))
+    expected = {
+        FixQuality.NONE: "no GNSS",
+        FixQuality.GNSS: "GNSS fix",
+        FixQuality.DGNSS: "DGNSS fix",
+        FixQuality.PPS: "Precise GNSS",
+        FixQuality.RTK_FIXED: "RTK Fixed Integer",
+        FixQuality.RTK_FLOAT: "RTK float",
+        FixQuality.DEAD_RECKONING: "Estimated (DR) mode",
+        FixQuality.MANUAL: "Manual Input",
+        FixQuality.SIMULATION: "Simulate mode",
+    }
+    assert {q: labels[int(m)] for q, m in GNSS_METHOD_OF_FIX.items()} == expected
+
+
+def test_unknown_solution_fields_decode_as_missing_never_zero() -> None:
+    d = decode(EMPTY)
+    for message, fields in {
+        "attitude": ("yaw", "pitch", "roll"),
+        "rateOfTurn": ("rate",),
+        "vesselHeading": ("heading", "deviation", "variation"),
+        "positionRapidUpdate": ("latitude", "longitude"),
+        "cogSogRapidUpdate": ("cog", "sog"),
+        "gnssPositionData": ("latitude", "longitude", "altitude", "numberOfSvs", "hdop"),
+    }.items():
+        for field in fields:
+            assert value(d, message, field) is None, (message, field)
+    assert value(d, "gnssPositionData", "method") is None
+    assert value(d, "gnssPositionData", "referenceStations") == 0
+    # reserved bits are ones
+    assert d["attitude"]["reserved_56"].raw_value == 0xFF
+    assert d["rateOfTurn"]["reserved_40"].raw_value == 0xFFFFFF
+    assert d["cogSogRapidUpdate"]["reserved_48"].raw_value == 0xFFFF
+
+
+def test_course_not_available_while_stationary() -> None:
+    d = decode(Solution(t=T, mode=Mode.NAVIGATING, vel_ned_mps=(0.0, 0.0, 0.0), stationary=True))
+    assert value(d, "cogSogRapidUpdate", "cog") is None
+    assert value(d, "cogSogRapidUpdate", "sog") == 0
+
+
+def test_payloads_equal_canboats_own_encoding() -> None:
+    """Same values through canboat's encoder give the same bytes as ours."""
+    encoder = OutputEncoder()
+    ours = {pgn: encoder.payload(pgn, FULL, LOOP, 42) for pgn in LAYOUTS}
+    db = backend.DATABASE
+    assert ours[Pgn.ATTITUDE] == db.encode(
+        "attitude", {"sid": 42, "yaw": 4.0 - 2 * math.pi, "pitch": -0.0456, "roll": 0.0123}
+    )
+    assert ours[Pgn.RATE_OF_TURN] == db.encode("rateOfTurn", {"sid": 42, "rate": -0.2345})
+    assert ours[Pgn.VESSEL_HEADING] == db.encode(
+        "vesselHeading", {"sid": 42, "heading": 4.0, "reference": 0}
+    )
+    assert ours[Pgn.POSITION_RAPID_UPDATE] == db.encode(
+        "positionRapidUpdate", {"latitude": FULL.lat_deg, "longitude": FULL.lon_deg}
+    )
+
+
+@given(st.floats(min_value=-1e6, max_value=1e6, allow_nan=False))
+def test_out_of_range_never_wraps(pitch_rad: float) -> None:
+    payload = OutputEncoder().payload(
+        Pgn.ATTITUDE, Solution(t=T, mode=Mode.NAVIGATING, pitch_rad=pitch_rad), LOOP, 0
+    )
+    raw = int.from_bytes(payload[3:5], "little", signed=True)
+    if abs(pitch_rad) <= 3.2764:
+        assert abs(raw * 1e-4 - pitch_rad) <= 0.5e-4 + 1e-12
+    else:
+        assert raw == 0x7FFE  # NMEA 2000 "out of range": decoders report it as missing
+        assert backend.decode(127257, payload).fields[2].value is None
+
+
+def proprietary(pgn: Pgn, solution: Solution, loop: LoopStatus = LOOP) -> bytes:
+    frames = OutputEncoder().frames(pgn, solution, loop, 0)
+    assert len(frames) == 1
+    assert frames[0].arbitration_id == 6 << 26 | pgn << 8 | 0x1C
+    return bytes(frames[0].data)
+
+
+HEADER = bytes([0xFE, 0x5F])  # 2046 | 0b11 << 11 | 2 << 13, little-endian
+
+
+def test_gyro_and_accel_bias_bytes() -> None:
+    gyro = proprietary(Pgn.NAVGW_GYRO_BIAS, FULL)
+    assert gyro == HEADER + (1234).to_bytes(2, "little") + (-5000).to_bytes(
+        2, "little", signed=True
+    ) + (0x7FFE).to_bytes(2, "little")  # z: out of range, not wrapped
+    accel = proprietary(Pgn.NAVGW_ACCEL_BIAS, FULL)
+    assert accel == HEADER + bytes.fromhex("7b00") + (-2000).to_bytes(2, "little", signed=True) + (
+        15000
+    ).to_bytes(2, "little")
+    assert proprietary(Pgn.NAVGW_GYRO_BIAS, EMPTY) == HEADER + bytes.fromhex("ff7fff7fff7f")
+
+
+def test_status_bytes() -> None:
+    data = proprietary(Pgn.NAVGW_STATUS, FULL)
+    assert data[:2] == HEADER
+    assert data[2] == 2  # navigating
+    assert data[3] == 4  # RTK fixed
+    assert data[4] == 0b1110_0011  # reserved, EKF, claimed, -, -, -, GNSS ok, IMU ok
+    assert data[5] == 0b1111_0101  # reserved x4, frozen 0, accel xy, gyro z 0, gyro xy
+    assert data[6] == 3
+    assert data[7] == 37  # 0.37 deg
+    lost = LoopStatus(address_claimed=False, imu_samples_lost=1000)
+    data = proprietary(Pgn.NAVGW_STATUS, Solution(t=T, mode=Mode.FAULT, sigma_tilt_rad=0.05), lost)
+    assert data[2:] == bytes([5, 0xFF, 0x80, 0xF0, 255, 0xFF])  # sigma 2.86 deg -> unknown
+
+
+def test_status_at_tilt_sigma_limit() -> None:
+    def sigma_byte(deg: float) -> int:
+        s = Solution(t=T, mode=Mode.NAVIGATING, sigma_tilt_rad=math.radians(deg))
+        return proprietary(Pgn.NAVGW_STATUS, s)[7]
+
+    assert [sigma_byte(x) for x in (0.0, 2.54, 2.55, 10.0)] == [0, 254, 255, 255]
+
+
+def test_nmea2000_recognises_the_proprietary_header() -> None:
+    decoder = NMEA2000Decoder()
+    for pgn in (Pgn.NAVGW_GYRO_BIAS, Pgn.NAVGW_ACCEL_BIAS, Pgn.NAVGW_STATUS):
+        (frame,) = OutputEncoder(manufacturer_code=2046).frames(pgn, FULL, LOOP, 0)
+        fields = {f.id: f for f in decoder.decode(frame).fields}
+        assert fields["manufacturerCode"].raw_value == 2046
+        assert fields["reserved_11"].raw_value == 3
+        assert fields["industryCode"].value == "Agriculture"
+
+
+def test_frames_use_the_loop_source_address_and_solution_time() -> None:
+    loop = LoopStatus(source_address=0x85, address_claimed=True)
+    frames = OutputEncoder().frames(Pgn.GNSS_POSITION_DATA, FULL, loop, 1)
+    assert len(frames) == 7
+    assert {f.arbitration_id for f in frames} == {3 << 26 | 129029 << 8 | 0x85}
+    assert {f.timestamp for f in frames} == {T}
+    assert all(isinstance(f, can.Message) and f.is_extended_id for f in frames)
+
+
+def test_manufacturer_code_must_fit_11_bits() -> None:
+    with pytest.raises(ValueError, match="2048"):
+        OutputEncoder(manufacturer_code=2048)
