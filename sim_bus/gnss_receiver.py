@@ -1,0 +1,369 @@
+"""Simulated RTK GNSS receiver: truth antenna motion in, NMEA 0183 lines with receive times out.
+
+The receiver computes a solution at whole multiples of 1/rate in UTC and prints, per epoch,
+GGA and RMC (always), VTG, GST, ZDA (on by default) and HDT (dual-antenna heading, off by
+default) in the formats of SPEC 2. Error model per fix quality (:class:`NoiseModel`):
+
+- position: first-order Gauss-Markov per axis (RTK multipath and atmosphere residuals are
+  correlated over tens of seconds, not white), one process per quality so that a quality
+  change makes the jump a real receiver shows;
+- velocity: white per horizontal axis (carrier-phase Doppler is smooth and independent of the
+  position error), giving SOG and COG;
+- heading (HDT): white, ``heading_sigma_rad``.
+
+GST reports the 1-sigma values of the model in use, so a consumer that weights by GST weights
+correctly. COG below ``cog_min_speed_mps`` (measured speed) holds the last course computed above
+it, as most RTK receivers do, and is empty until there has been one; SOG is always printed.
+Reversing needs no special case: COG is the direction of the antenna velocity.
+
+Receive times model the serial link: the epoch's sentences become ready ``latency_s`` plus a
+uniform jitter in [0, ``latency_jitter_s``) after the epoch, then leave the UART at ``baud``
+8N1 (10 bits a byte) one after another; a line's host time is when its LF has arrived (queued
+behind the previous epoch if the link is still busy), plus ``host_clock_offset_s``.
+"""
+
+from __future__ import annotations
+
+import datetime as dt
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, field
+from typing import NamedTuple
+
+import numpy as np
+import numpy.typing as npt
+
+from drivers.nmea import nmea_checksum
+from drivers.samples import FixQuality
+from gateway.geodesy import ned_to_lla
+from sim_bus.truth import Truth
+
+Array = npt.NDArray[np.float64]
+
+KNOT_MPS = 1852.0 / 3600.0
+BITS_PER_BYTE_8N1 = 10
+
+# RMC/VTG mode indicator (NMEA 2.3+) for each GGA fix quality.
+MODE_INDICATOR: Mapping[FixQuality, str] = {
+    FixQuality.NONE: "N",
+    FixQuality.GNSS: "A",
+    FixQuality.DGNSS: "D",
+    FixQuality.RTK_FIXED: "R",
+    FixQuality.RTK_FLOAT: "F",
+    FixQuality.DEAD_RECKONING: "E",
+}
+
+# Qualities with a base-station correction stream: GGA carries its age and station ID.
+CORRECTED = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
+
+
+@dataclass(frozen=True, slots=True)
+class NoiseModel:
+    """Error model of one fix quality (1-sigma values, SI)."""
+
+    sigma_h_m: float  # position, per horizontal axis (north, east)
+    sigma_v_m: float  # position, vertical
+    tau_s: float  # correlation time of the position error
+    sigma_vel_mps: float  # velocity, per horizontal axis, white
+
+
+DEFAULT_NOISE: Mapping[FixQuality, NoiseModel] = {
+    FixQuality.RTK_FIXED: NoiseModel(0.010, 0.025, 30.0, 0.02),  # 1.4 cm horizontal RMS
+    FixQuality.RTK_FLOAT: NoiseModel(0.15, 0.30, 60.0, 0.03),  # 0.21 m
+    FixQuality.DGNSS: NoiseModel(0.35, 0.70, 120.0, 0.05),  # 0.5 m
+    FixQuality.GNSS: NoiseModel(1.05, 2.0, 300.0, 0.08),  # 1.5 m
+    FixQuality.DEAD_RECKONING: NoiseModel(2.0, 4.0, 60.0, 0.20),
+}
+
+
+class FixInterval(NamedTuple):
+    """Fix quality during [t_start_s, t_end_s), seconds since the first truth sample."""
+
+    t_start_s: float
+    t_end_s: float
+    quality: FixQuality
+
+
+@dataclass(frozen=True)
+class GnssReceiverConfig:
+    """Receiver model settings; defaults are a 10 Hz RTK receiver on 115200 baud."""
+
+    rate_hz: float = 10.0  # 1, 2, 4, 5, 10 or 20: the epoch must be whole centiseconds
+    talker: str = "GN"
+    vtg: bool = True
+    gst: bool = True
+    zda: bool = True
+    hdt: bool = False
+    # Later intervals override earlier ones; RTK fixed outside every interval.
+    fix_schedule: tuple[FixInterval, ...] = ()
+    noise: Mapping[FixQuality, NoiseModel] = field(default_factory=lambda: dict(DEFAULT_NOISE))
+    heading_sigma_rad: float = math.radians(0.15)
+    latency_s: float = 0.040
+    latency_jitter_s: float = 0.003
+    baud: int = 115200
+    host_clock_offset_s: float = 0.0  # host clock minus UTC
+    geoid_separation_m: float = 47.0  # GGA field: ellipsoidal height minus MSL altitude
+    num_sats: int = 22  # mean number of satellites used
+    hdop: float = 0.7  # HDOP with num_sats satellites
+    correction_period_s: float = 1.0  # base station message interval (UTC-aligned)
+    correction_latency_s: float = 0.6  # base to rover link delay
+    base_station_id: int = 0
+    cog_min_speed_mps: float = 0.1
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        period_cs = 100.0 / self.rate_hz
+        if not 1.0 <= self.rate_hz <= 20.0 or abs(period_cs - round(period_cs)) > 1e-9:
+            raise ValueError(
+                f"rate_hz={self.rate_hz}: expected 1, 2, 4, 5, 10 or 20 "
+                "(an epoch of whole centiseconds, as printed in hhmmss.ss)"
+            )
+        if len(self.talker) != 2 or not self.talker.isalpha() or not self.talker.isupper():
+            raise ValueError(f"talker={self.talker!r}: expected two capital letters, e.g. 'GN'")
+        for interval in self.fix_schedule:
+            quality = FixQuality(interval[2])
+            if quality != FixQuality.NONE and quality not in self.noise:
+                raise ValueError(
+                    f"fix_schedule quality {quality.name}: no noise model; expected NONE or "
+                    f"one of {', '.join(q.name for q in self.noise)}"
+                )
+
+    @property
+    def period_cs(self) -> int:
+        """Epoch interval in centiseconds."""
+        return round(100.0 / self.rate_hz)
+
+
+class NmeaLine(NamedTuple):
+    """One sentence (without CRLF) and the host time its last byte arrived, s."""
+
+    host_t: float
+    sentence: str
+
+
+@dataclass
+class ReceiverOutput:
+    """The lines the receiver sent and, per epoch, the solution they carry (SI)."""
+
+    lines: list[NmeaLine]
+    t_utc: Array  # (n,) epoch instants, UTC s
+    quality: npt.NDArray[np.int64]  # (n,) FixQuality values
+    lla: Array  # (n, 3) reported antenna lat deg, lon deg, ellipsoidal height m; NaN no fix
+    vel_ne_mps: Array  # (n, 2) reported horizontal velocity; NaN with no fix
+    heading_rad: Array  # (n,) reported HDT heading; NaN with no fix
+
+
+def nmea_sentence(body: str) -> str:
+    """``$body*hh`` with the NMEA checksum (XOR of the body characters) in hex."""
+    return f"${body}*{nmea_checksum(body):02X}"
+
+
+def gauss_markov(
+    rng: np.random.Generator, n: int, dt_s: float, tau_s: float, sigma: Array
+) -> Array:
+    """Stationary first-order Gauss-Markov sequences, shape (n, len(sigma)), in steady state.
+
+    x_k = a x_{k-1} + sqrt(1 - a^2) sigma w_k with a = exp(-dt/tau): variance sigma^2 at every k.
+    """
+    a = math.exp(-dt_s / tau_s)
+    x = rng.standard_normal((n, len(sigma))) * sigma
+    x[1:] *= math.sqrt(1.0 - a * a)
+    for k in range(1, n):  # 9000 epochs: ~10 ms; a closed form would overflow a^-k
+        x[k] += a * x[k - 1]
+    return x
+
+
+def simulate_receiver(truth: Truth, config: GnssReceiverConfig | None = None) -> ReceiverOutput:
+    """Run the receiver over the truth's time span; epochs outside it are not produced."""
+    cfg = config or GnssReceiverConfig()
+    rng = np.random.default_rng(cfg.seed)
+    t0 = float(truth.t[0])
+    k = np.arange(
+        math.ceil(t0 * 100.0 / cfg.period_cs - 1e-9),
+        math.floor(float(truth.t[-1]) * 100.0 / cfg.period_cs + 1e-9) + 1,
+        dtype=np.int64,
+    )
+    t_cs = k * cfg.period_cs
+    t_utc = t_cs / 100.0
+    n = len(t_utc)
+    t_rel, truth_rel = t_utc - t0, truth.t - t0
+
+    def interp(column: Array) -> Array:
+        return np.stack([np.interp(t_rel, truth_rel, c) for c in column.T], axis=-1)
+
+    pos_ned = interp(truth.pos_ant_ned_m)
+    vel_ne = interp(truth.vel_ant_ned_mps[:, :2])
+    yaw = np.interp(t_rel, truth_rel, np.unwrap(truth.rpy_rad[:, 2]))
+
+    quality = np.full(n, int(FixQuality.RTK_FIXED), dtype=np.int64)
+    for start, end, q in cfg.fix_schedule:
+        quality[(t_rel >= start) & (t_rel < end)] = int(q)
+    fix = quality != FixQuality.NONE
+
+    pos_err = np.zeros((n, 3))
+    vel_sigma = np.zeros(n)
+    sigma_h, sigma_v = np.full(n, np.nan), np.full(n, np.nan)
+    for q in np.unique(quality[fix]):
+        model = cfg.noise[FixQuality(int(q))]
+        sel = quality == q
+        sigma = np.array([model.sigma_h_m, model.sigma_h_m, model.sigma_v_m])
+        pos_err[sel] = gauss_markov(rng, n, 1.0 / cfg.rate_hz, model.tau_s, sigma)[sel]
+        vel_sigma[sel] = model.sigma_vel_mps
+        sigma_h[sel], sigma_v[sel] = model.sigma_h_m, model.sigma_v_m
+
+    lla = ned_to_lla(pos_ned + pos_err, truth.origin_lla)
+    lla[~fix] = np.nan
+    vel_ne = vel_ne + vel_sigma[:, None] * rng.standard_normal((n, 2))
+    vel_ne[~fix] = np.nan
+    sog = np.hypot(vel_ne[:, 0], vel_ne[:, 1])
+    cog = np.mod(np.arctan2(vel_ne[:, 1], vel_ne[:, 0]), 2.0 * np.pi)
+    last_moving = np.maximum.accumulate(np.where(sog >= cfg.cog_min_speed_mps, np.arange(n), -1))
+    cog = np.where(last_moving >= 0, cog[last_moving], np.nan)
+    cog[~fix] = np.nan
+    heading_ok = fix & (quality != FixQuality.DEAD_RECKONING)
+    heading = np.mod(yaw + cfg.heading_sigma_rad * rng.standard_normal(n), 2.0 * np.pi)
+    heading[~heading_ok] = np.nan
+
+    sats = np.clip(
+        np.rint(
+            cfg.num_sats + gauss_markov(rng, n, 1.0 / cfg.rate_hz, 120.0, np.array([2.0]))[:, 0]
+        ),
+        5,
+        40,
+    ).astype(np.int64)
+    hdop = cfg.hdop * np.sqrt(cfg.num_sats / sats)
+    p, lat_c = cfg.correction_period_s, cfg.correction_latency_s
+    age = t_utc - np.floor((t_utc - lat_c) / p) * p
+
+    bodies, line_epoch = _format_epochs(
+        cfg, t_cs, quality, lla, sog, cog, heading, sats, hdop, age, sigma_h, sigma_v
+    )
+    host_t = _receive_times(cfg, rng, t_utc, bodies, line_epoch)
+    lines = [NmeaLine(float(t), s) for t, s in zip(host_t, bodies, strict=True)]
+    return ReceiverOutput(lines, t_utc, quality, lla, vel_ne, heading)
+
+
+def _format_epochs(
+    cfg: GnssReceiverConfig,
+    t_cs: npt.NDArray[np.int64],
+    quality: npt.NDArray[np.int64],
+    lla: Array,
+    sog: Array,
+    cog: Array,
+    heading: Array,
+    sats: npt.NDArray[np.int64],
+    hdop: Array,
+    age: Array,
+    sigma_h: Array,
+    sigma_v: Array,
+) -> tuple[list[str], list[int]]:
+    """All sentences of all epochs, in order, with the epoch index of each."""
+    tk = cfg.talker
+    day_cs = 86400 * 100
+    sod = t_cs % day_cs
+    times = [
+        f"{h:02d}{m:02d}{s // 100:02d}.{s % 100:02d}"
+        for h, m, s in zip(
+            (sod // 360000).tolist(),
+            (sod // 6000 % 60).tolist(),
+            (sod % 6000).tolist(),
+            strict=True,
+        )
+    ]
+    days = {
+        int(d): dt.date(1970, 1, 1) + dt.timedelta(days=int(d)) for d in np.unique(t_cs // day_cs)
+    }
+    dates = [days[d] for d in (t_cs // day_cs).tolist()]
+    lat_txt = _ddmm(np.nan_to_num(lla[:, 0]), 2)
+    lon_txt = _ddmm(np.nan_to_num(lla[:, 1]), 3)
+    alt_msl = (lla[:, 2] - cfg.geoid_separation_m).tolist()
+    sog_kn = (sog / KNOT_MPS).tolist()
+    cog_deg = np.degrees(cog).tolist()
+    hdg_deg = np.degrees(heading).tolist()
+    rms = np.sqrt(2.0 * sigma_h**2 + sigma_v**2).tolist()
+    sats_n, hdop_v, age_s = sats.tolist(), hdop.tolist(), age.tolist()
+    sig_h, sig_v = sigma_h.tolist(), sigma_v.tolist()
+    sep = f"{cfg.geoid_separation_m:.3f}"
+    sid = f"{cfg.base_station_id:04d}"
+
+    bodies: list[str] = []
+    line_epoch: list[int] = []
+    for i, q_int in enumerate(quality.tolist()):
+        q = FixQuality(q_int)
+        t, d = times[i], dates[i]
+        ddmmyy = f"{d.day:02d}{d.month:02d}{d.year % 100:02d}"
+        mode = MODE_INDICATOR[q]
+        epoch: list[str] = []
+        if q == FixQuality.NONE:
+            epoch.append(f"{tk}GGA,{t},,,,,0,00,99.99,,,,,,")
+            epoch.append(f"{tk}RMC,{t},V,,,,,,,{ddmmyy},,,N")
+            if cfg.vtg:
+                epoch.append(f"{tk}VTG,,T,,M,,N,,K,N")
+            if cfg.gst:
+                epoch.append(f"{tk}GST,{t},,,,,,,")
+        else:
+            lat, ns = lat_txt[i]
+            lon, ew = lon_txt[i]
+            corr = f"{age_s[i]:.1f},{sid}" if q in CORRECTED else ","
+            epoch.append(
+                f"{tk}GGA,{t},{lat},{'N' if ns else 'S'},{lon},{'E' if ew else 'W'},{q_int},"
+                f"{sats_n[i]:02d},{hdop_v[i]:.2f},{alt_msl[i]:.3f},M,{sep},M,{corr}"
+            )
+            status = "V" if q == FixQuality.DEAD_RECKONING else "A"  # NMEA: only A/D/F/R valid
+            course = "" if math.isnan(cog_deg[i]) else f"{cog_deg[i]:.2f}"
+            kn = sog_kn[i]
+            epoch.append(
+                f"{tk}RMC,{t},{status},{lat},{'N' if ns else 'S'},{lon},{'E' if ew else 'W'},"
+                f"{kn:.3f},{course},{ddmmyy},,,{mode}"
+            )
+            if cfg.vtg:
+                epoch.append(f"{tk}VTG,{course},T,,M,{kn:.3f},N,{kn * 1.852:.3f},K,{mode}")
+            if cfg.gst:
+                sh, sv = sig_h[i], sig_v[i]
+                epoch.append(
+                    f"{tk}GST,{t},{rms[i]:.3f},{sh:.3f},{sh:.3f},0.0,{sh:.3f},{sh:.3f},{sv:.3f}"
+                )
+        if cfg.hdt:
+            hdg = "" if math.isnan(hdg_deg[i]) else f"{hdg_deg[i]:.3f}"
+            epoch.append(f"{tk}HDT,{hdg},T")
+        if cfg.zda:
+            epoch.append(f"{tk}ZDA,{t},{d.day:02d},{d.month:02d},{d.year:04d},00,00")
+        bodies.extend(nmea_sentence(b) for b in epoch)
+        line_epoch.extend([i] * len(epoch))
+    return bodies, line_epoch
+
+
+def _ddmm(deg: Array, deg_digits: int) -> list[tuple[str, bool]]:
+    """Angle -> (``d..dmm.mmmmmmm`` text, non-negative); 1e-7 minute is 0.2 mm."""
+    units = np.rint(np.abs(deg) * 60e7).astype(np.int64)
+    whole, rem = np.divmod(units, 60 * 10**7)
+    minutes, frac = np.divmod(rem, 10**7)
+    return [
+        (f"{w:0{deg_digits}d}{m:02d}.{f:07d}", pos)
+        for w, m, f, pos in zip(
+            whole.tolist(), minutes.tolist(), frac.tolist(), (deg >= 0).tolist(), strict=True
+        )
+    ]
+
+
+def _receive_times(
+    cfg: GnssReceiverConfig,
+    rng: np.random.Generator,
+    t_utc: Array,
+    sentences: list[str],
+    line_epoch: list[int],
+) -> Array:
+    """Host time at which each line's LF arrives, through a FIFO serial link."""
+    byte_s = BITS_PER_BYTE_8N1 / cfg.baud
+    line_s = np.array([len(s) + 2 for s in sentences], dtype=float) * byte_s  # + CRLF
+    epoch_of_line = np.asarray(line_epoch, dtype=np.int64)
+    epoch_s = np.bincount(epoch_of_line, weights=line_s, minlength=len(t_utc)).astype(np.float64)
+    ready = t_utc + cfg.latency_s + cfg.latency_jitter_s * rng.random(len(t_utc))
+    # FIFO: end_k = max(ready_k, end_{k-1}) + epoch_s_k, in closed form with a running max.
+    busy = np.cumsum(epoch_s)
+    end = busy + np.maximum.accumulate(ready - (busy - epoch_s))
+    start = end - epoch_s
+    line_end = np.cumsum(line_s)
+    epoch_begin = (busy - epoch_s)[epoch_of_line]
+    host_t: Array = start[epoch_of_line] + (line_end - epoch_begin) + cfg.host_clock_offset_s
+    return host_t

@@ -1,0 +1,314 @@
+"""NMEA decoder: each sentence type, epoch grouping, dates, framing errors, never raising."""
+
+from __future__ import annotations
+
+import calendar
+import logging
+import math
+from pathlib import Path
+
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from drivers.nmea import KNOT_MPS, NmeaDecoder, nmea_checksum, read_fixes_from_log
+from drivers.samples import FixQuality, GnssFix
+
+T0 = float(calendar.timegm((1994, 3, 23, 12, 35, 19)))
+
+
+def s(body: str, talker: str = "GN") -> str:
+    """A sentence with its checksum: s('GGA,...') -> '$GNGGA,...*hh'."""
+    body = talker + body
+    return f"${body}*{nmea_checksum(body):02X}"
+
+
+def stream(*sentences: str, eol: str = "\r\n") -> bytes:
+    return "".join(x + eol for x in sentences).encode()
+
+
+def decode(
+    data: bytes, t_host: float | None = None, *, require_checksum: bool = False
+) -> tuple[list[GnssFix], NmeaDecoder]:
+    decoder = NmeaDecoder("test", require_checksum=require_checksum)
+    return decoder.feed(data, t_host) + decoder.flush(), decoder
+
+
+def epoch(tod: str = "123519.00", ddmmyy: str = "230394", talker: str = "GN") -> list[str]:
+    """The six fix sentences of one epoch, in u-blox order."""
+    return [
+        s(f"RMC,{tod},A,4807.0380,N,01131.0000,E,10.0,90.0,{ddmmyy},003.1,W,R", talker),
+        s("VTG,90.0,T,93.1,M,10.0,N,18.5,K,R", talker),
+        s(f"GGA,{tod},4807.0380,N,01131.0000,E,4,12,0.9,545.4,M,46.9,M,1.2,0031", talker),
+        s(f"GST,{tod},0.5,0.02,0.01,30.0,0.015,0.012,0.030", talker),
+        s(f"ZDA,{tod},{ddmmyy[:2]},{ddmmyy[2:4]},19{ddmmyy[4:]},00,00", talker),
+        s("HDT,270.0,T", talker),
+    ]
+
+
+def test_full_epoch_every_field() -> None:
+    fixes, decoder = decode(stream(*epoch()), t_host=1700000000.5)
+    assert fixes == [
+        GnssFix(
+            t=1700000000.5,
+            t_utc=T0,
+            quality=FixQuality.RTK_FIXED,
+            lat_deg=48 + 7.038 / 60,
+            lon_deg=11 + 31.0 / 60,
+            alt_m=545.4 + 46.9,
+            num_sats=12,
+            hdop=0.9,
+            age_s=1.2,
+            sog_mps=10.0 * KNOT_MPS,
+            cog_rad=math.pi / 2,
+            heading_rad=3 * math.pi / 2,
+            sigma_n_m=0.015,
+            sigma_e_m=0.012,
+            sigma_d_m=0.030,
+            mode="R",
+        )
+    ]
+    c = decoder.counters
+    assert (c.sentences_ok, c.fixes, c.unassigned) == (6, 1, 0)
+    assert c.by_type == {"RMC": 1, "VTG": 1, "GGA": 1, "GST": 1, "ZDA": 1, "HDT": 1}
+
+
+@pytest.mark.parametrize("talker", ["GP", "GN", "GL", "GA", "GB", "BD"])
+def test_any_talker(talker: str) -> None:
+    fixes, _ = decode(stream(*epoch(talker=talker)))
+    assert [(f.quality, f.t, f.t_utc) for f in fixes] == [(FixQuality.RTK_FIXED, T0, T0)]
+
+
+def test_epoch_emitted_with_its_last_sentence_once_the_set_is_learned() -> None:
+    decoder = NmeaDecoder("test")
+    first, second = epoch("123519.00"), epoch("123519.10")
+    # first epoch: the set is not known yet, so it closes when the next epoch starts
+    assert [decoder.feed(x.encode() + b"\r\n", 1.0) for x in first] == [[]] * 6
+    assert [f.t_utc for f in decoder.feed(second[0].encode() + b"\r\n", 1.1)] == [T0]
+    # second epoch: complete at its HDT, no wait for the third
+    assert [decoder.feed(x.encode() + b"\r\n", 1.1) for x in second[1:5]] == [[]] * 4
+    assert [f.t_utc for f in decoder.feed(second[5].encode() + b"\r\n", 1.15)] == [T0 + 0.1]
+    assert decoder.flush() == []
+
+
+def test_sentence_late_for_an_emitted_epoch_is_counted_and_awaited_next_time() -> None:
+    gga = "GGA,{},4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,"
+    rmc = "RMC,{},A,4807.0380,N,01131.0000,E,0.0,,230394,,,A"
+    gst = "GST,{},0.5,0.02,0.01,30.0,0.015,0.012,0.030"
+    order = [(gga, 19), (rmc, 19), (gga, 20), (rmc, 20), (gst, 20), (gga, 21), (rmc, 21), (gst, 21)]
+    fixes, decoder = decode(stream(*(s(x.format(f"1235{sec}.00")) for x, sec in order)))
+    assert [f.t_utc for f in fixes] == [T0, T0 + 1, T0 + 2]
+    assert [f.sigma_n_m for f in fixes] == [None, None, 0.015]
+    assert decoder.counters.unassigned == 1
+
+
+def test_midnight_rollover_without_date_in_gga() -> None:
+    gga = "GGA,{},4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,"
+    lines = [
+        s(gga.format("235959.50")),
+        s("RMC,235959.50,A,4807.0380,N,01131.0000,E,0.0,,311299,,,A"),
+    ]
+    lines += [s(gga.format(tod)) for tod in ("235959.75", "000000.00", "000000.25")]
+    fixes, _ = decode(stream(*lines))
+    midnight = float(calendar.timegm((2000, 1, 1, 0, 0, 0)))
+    assert [f.t_utc for f in fixes] == [midnight - 0.5, midnight - 0.25, midnight, midnight + 0.25]
+    assert [f.t for f in fixes] == [f.t_utc for f in fixes]  # no host time: t is the UTC
+
+
+def test_gga_alone_has_no_utc_until_a_date_arrives() -> None:
+    fixes, _ = decode(stream(s("GGA,000001.00,4807.0380,N,01131.0000,E,1,08,0.9,5.0,M,1.0,M,,")))
+    assert [(f.t, f.t_utc, f.alt_m) for f in fixes] == [(1.0, None, 6.0)]  # t: time of day
+
+
+def test_no_fix_yields_quality_none_with_empty_fields() -> None:
+    lines = [s("GGA,,,,,,0,00,99.99,,,,,,", "GP"), s("RMC,,V,,,,,,,,,,N", "GP")]
+    lines += [s("VTG,,T,,M,,N,,K,N", "GP")] + lines
+    fixes, decoder = decode(stream(*lines), t_host=5.0)
+    assert (
+        fixes
+        == [GnssFix(t=5.0, t_utc=None, quality=FixQuality.NONE, num_sats=0, hdop=99.99, mode="N")]
+        * 2
+    )
+    assert decoder.counters.parse_errors == 0
+
+
+def test_no_fix_hides_a_stale_position() -> None:
+    lines = [s("GGA,212406.000,4807.0380,N,01131.0000,E,0,00,0.0,0.000,M,0.000,M,,0000", "GP")]
+    lines += [s("RMC,212406.000,V,4807.0380,N,01131.0000,E,1.0,10.0,280316,,,N", "GP")]
+    (fix,), _ = decode(stream(*lines))
+    assert (fix.quality, fix.lat_deg, fix.lon_deg, fix.alt_m, fix.sog_mps) == (
+        FixQuality.NONE,
+        None,
+        None,
+        None,
+        None,
+    )
+    assert fix.t_utc == calendar.timegm((2016, 3, 28, 21, 24, 6))
+
+
+def test_rmc_only_takes_quality_from_mode_and_vtg_fills_velocity() -> None:
+    lines = [
+        s("RMC,123519.00,A,4807.0380,S,01131.0000,W,,,230394,,,F"),
+        s("VTG,180.0,T,,M,,N,36.0,K,F"),
+    ]
+    (fix,), _ = decode(stream(*lines))
+    assert (fix.quality, fix.lat_deg, fix.lon_deg) == (
+        FixQuality.RTK_FLOAT,
+        -(48 + 7.038 / 60),
+        -(11 + 31 / 60),
+    )
+    assert (fix.sog_mps, fix.cog_rad, fix.alt_m) == (10.0, math.pi, None)
+
+
+@pytest.mark.parametrize("eol", ["\r\n", "\n", "\r", "\n\r"])
+def test_line_end_variants(eol: str) -> None:
+    fixes, decoder = decode(stream(*epoch(), eol=eol))
+    assert [f.t_utc for f in fixes] == [T0]
+    assert decoder.counters.skipped_bytes == 0
+
+
+def test_every_split_position_gives_the_same_fixes() -> None:
+    data = stream(*epoch("123519.00"), *epoch("123519.10")[:3], eol="\r\n")
+    data = b"\xb5\x62\x01\x07junk" + data + b"$GPGGA,12"
+    reference, _ = decode(data)
+    assert len(reference) == 2
+    for cut in range(len(data) + 1):
+        decoder = NmeaDecoder("test")
+        assert decoder.feed(data[:cut]) + decoder.feed(data[cut:]) + decoder.flush() == reference
+    decoder = NmeaDecoder("test")
+    assert [
+        f for i in range(len(data)) for f in decoder.feed(data[i : i + 1])
+    ] + decoder.flush() == reference
+
+
+def test_bad_checksum_dropped_counted_and_reported(caplog: pytest.LogCaptureFixture) -> None:
+    good = s("HDT,270.0,T")
+    bad = good[:-2] + "00"
+    data = b"\r\n" + bad.encode() + b"\r\n"
+    with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+        _, decoder = decode(data)
+    assert decoder.counters.checksum_errors == 1 and decoder.counters.sentences_ok == 0
+    assert caplog.messages == [
+        f"test byte 2: bad checksum in '{bad}': got *00, expected *{good[-2:]}; sentence dropped"
+    ]
+
+
+def test_sentence_without_checksum_accepted_unless_required(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    bare = "$GPGGA,222449,3349.0337,S,01843.9282,E,1,07,02.31,000115.4,M,0033.3,M,,"
+    with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+        (fix,), decoder = decode(bare.encode() + b"\n")
+    assert (fix.quality, fix.num_sats, decoder.counters.no_checksum) == (FixQuality.GNSS, 7, 1)
+    assert caplog.messages == [
+        f"test byte 0: sentence without checksum accepted: '{bare}' "
+        "(expected '*hh' before the line end)"
+    ]
+    fixes, decoder = decode(bare.encode() + b"\n", require_checksum=True)
+    assert (fixes, decoder.counters.no_checksum, decoder.counters.sentences_ok) == ([], 1, 0)
+
+
+def test_truncated_sentences(caplog: pytest.LogCaptureFixture) -> None:
+    full = s("HDT,270.0,T")
+    cut_by_binary = b"$GPGGA,1235" + b"\xd3\x00\x13>" + full.encode() + b"\n"
+    cut_by_start = b"$GPGGA,030130" + full.encode() + b"\n"
+    cut_short = b"$GPGGA,222449,3349.0337,S,01843.9282,E,1\n"  # no checksum: needs 14 fields
+    with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+        _, decoder = decode(cut_by_binary + cut_by_start + cut_short)
+    c = decoder.counters
+    assert (c.truncated, c.skipped_bytes, c.parse_errors, c.by_type) == (
+        2,
+        4,
+        1,
+        {"HDT": 2, "GGA": 1},
+    )
+    assert caplog.messages[0] == (
+        "test byte 0: truncated sentence '$GPGGA,1235' dropped, cut by byte 0xD3 "
+        "(expected '*hh' and CR/LF)"
+    )
+    assert caplog.messages[-1] == (
+        f"test byte {len(cut_by_binary + cut_by_start)}: "
+        f"cannot decode '{cut_short.decode().strip()}': "
+        "6 fields, expected at least 14; sentence dropped"
+    )
+
+
+def test_over_long_line_dropped_and_next_sentence_found() -> None:
+    data = b"$GPTXT," + b"A" * 300 + b"\r\n" + stream(*epoch())
+    fixes, decoder = decode(data)
+    assert (len(fixes), decoder.counters.overlong, decoder.counters.skipped_bytes) == (1, 1, 0)
+
+
+def test_parse_errors_and_unsupported(caplog: pytest.LogCaptureFixture) -> None:
+    lines = [
+        s("GGA,123519.00,9107.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,"),
+        s("GSV,1,1,00", "GP"),
+    ]
+    lines += ["$PUBX,00*33", s("RMC,123519.00,A,4807.0380,N,01131.0000,E,x,,230394,,,A")]
+    with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+        fixes, decoder = decode(stream(*lines), t_host=100.0)
+    c = decoder.counters
+    assert (fixes, c.parse_errors, c.unsupported, c.by_type["PUBX"]) == ([], 2, 2, 1)
+    assert caplog.messages == [
+        f"test byte 0: cannot decode '{lines[0]}': '9107.0380' is beyond 90 deg; sentence dropped"
+    ]
+
+
+def test_warnings_rate_limited_per_kind_over_input_time(caplog: pytest.LogCaptureFixture) -> None:
+    bad = s("HDT,270.0,T")[:-2] + "00"
+    decoder = NmeaDecoder("/dev/ttyUSB0")
+    with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+        for t in (0.0, 1.0, 9.9, 10.0):
+            decoder.feed(bad.encode() + b"\n", t)
+    assert decoder.counters.checksum_errors == 4
+    assert [m.split(":")[0] for m in caplog.messages] == [
+        "/dev/ttyUSB0 byte 0",
+        "/dev/ttyUSB0 byte 54",
+    ]
+    assert caplog.messages[1].endswith("[2 more like this since the last report]")
+
+
+def test_read_fixes_from_log_uses_host_stamps(tmp_path: Path) -> None:
+    path = tmp_path / "gnss.nmea"
+    first, second = epoch("123519.00"), epoch("123519.10")
+    lines = [f"({1700000000.0 + i * 0.01:.6f}) {x}" for i, x in enumerate(first)] + second
+    path.write_text("\n".join(lines) + "\n")
+    fixes = list(read_fixes_from_log(path))
+    assert [(f.t, f.t_utc) for f in fixes] == [(1700000000.05, T0), (T0 + 0.1, T0 + 0.1)]
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.binary(max_size=600))
+def test_arbitrary_bytes_never_raise(data: bytes) -> None:
+    decoder = NmeaDecoder("fuzz")
+    decoder.feed(data, 0.0)
+    decoder.flush()
+
+
+VALID = stream(*epoch("123519.00"), *epoch("123519.10"), *epoch("123519.20"))
+
+
+@settings(max_examples=200, deadline=None)
+@given(st.lists(st.binary(max_size=40), min_size=19, max_size=19))
+def test_junk_between_sentences_does_not_hide_them(junk: list[bytes]) -> None:
+    sentences = VALID.split(b"\r\n")[:-1]
+    data = (
+        b"".join(j + b"\r\n" + x + b"\r\n" for j, x in zip(junk, sentences, strict=False))
+        + junk[-1]
+    )
+    fixes, _ = decode(data)
+    assert [f.t_utc for f in fixes] == [T0, T0 + 0.1, T0 + 0.2]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.integers(0, len(VALID)), st.integers(0, 3), st.binary(max_size=4)), max_size=8
+    )
+)
+def test_mutated_stream_never_raises(edits: list[tuple[int, int, bytes]]) -> None:
+    data = bytearray(VALID)
+    for at, remove, insert in edits:
+        data[at : at + remove] = insert
+    fixes, decoder = decode(bytes(data))
+    assert len(fixes) <= decoder.counters.sentences_ok

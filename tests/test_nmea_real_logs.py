@@ -1,0 +1,143 @@
+"""The decoder on real receiver streams from gpsd's regression logs (tests/data/nmea, BSD-2).
+
+The logs are raw receiver output without host stamps, some with binary protocols, so they
+are fed to the decoder as bytes, in chunks of a serial port's size.
+"""
+
+from __future__ import annotations
+
+import calendar
+import math
+import re
+from collections import Counter
+from functools import reduce
+from operator import xor
+from pathlib import Path
+
+import pytest
+
+from drivers.nmea import KNOT_MPS, NmeaDecoder, read_fixes_from_log
+from drivers.samples import FixQuality, GnssFix
+
+DATA = Path(__file__).parent / "data" / "nmea"
+LOGS = sorted(DATA.glob("*.log"))
+# a complete sentence: start character, printable ASCII without another start, then CR or LF
+SENTENCE = re.compile(rb"[$!]([\x20\x22\x23\x25-\x7e]*)(?=[\r\n])")
+
+
+def decode(name: str, chunk: int = 64) -> tuple[list[GnssFix], NmeaDecoder]:
+    data = (DATA / name).read_bytes()
+    decoder = NmeaDecoder(name)
+    fixes = [f for i in range(0, len(data), chunk) for f in decoder.feed(data[i : i + chunk])]
+    return fixes + decoder.flush(), decoder
+
+
+def bad_checksums(data: bytes) -> int:
+    """Independent count: complete sentences whose '*hh' is not the XOR of the body."""
+    count = 0
+    for m in SENTENCE.finditer(data):
+        body, star, checksum = m[1].partition(b"*")
+        count += bool(star) and checksum.upper() != b"%02X" % reduce(xor, body, 0)
+    return count
+
+
+def test_all_logs_are_here() -> None:
+    assert len(LOGS) == 32 and (DATA / "COPYING.gpsd").exists()
+
+
+@pytest.mark.parametrize("path", LOGS, ids=[p.name for p in LOGS])
+def test_log_read_to_the_end_with_checksum_errors_counted(path: Path) -> None:
+    fixes, decoder = decode(path.name)
+    c = decoder.counters
+    assert c.checksum_errors == bad_checksums(path.read_bytes())
+    assert c.fixes == len(fixes) and c.overlong == 0
+    assert all(f.quality is FixQuality.NONE or f.lat_deg is not None for f in fixes if f.t_utc)
+
+
+@pytest.mark.parametrize(("name", "expected"), [("gpsdf.log", 46), ("com-1289.log", 1)])
+def test_hand_counted_checksum_errors(name: str, expected: int) -> None:
+    assert decode(name)[1].counters.checksum_errors == expected
+
+
+def test_trimble_rtk_fixed_position() -> None:
+    fixes, decoder = decode("nmea-rtk.log")
+    assert Counter(f.quality for f in fixes) == {FixQuality.DGNSS: 104, FixQuality.RTK_FIXED: 18}
+    # $GNGGA,133859.80,4134.50180205,N,09345.03586649,W,4,19,0.7,280.827,M,-31.442,M,5.8,0002*6D
+    # $GNRMC,133859.80,A,4134.50180205,N,09345.03586649,W,0.008,0.000,180320,11.5982,E,D*36
+    fix = next(f for f in fixes if f.quality is FixQuality.RTK_FIXED)
+    assert fix == GnssFix(
+        t=calendar.timegm((2020, 3, 18, 13, 38, 59)) + 0.8,
+        t_utc=calendar.timegm((2020, 3, 18, 13, 38, 59)) + 0.8,
+        quality=FixQuality.RTK_FIXED,
+        lat_deg=41 + 34.50180205 / 60,
+        lon_deg=-(93 + 45.03586649 / 60),
+        alt_m=280.827 - 31.442,
+        num_sats=19,
+        hdop=0.7,
+        age_s=5.8,
+        sog_mps=0.008 * KNOT_MPS,
+        cog_rad=0.0,
+        mode="D",
+    )
+    assert decoder.counters.by_type == {"GGA": 122, "RMC": 122}
+
+
+def test_zed_f9p_epoch_with_gst_and_zda() -> None:
+    fixes, decoder = decode("ublox-zed-f9p-nmea.log")
+    # $GNRMC,003956.00,A,4552.65403,S,17030.00668,E,0.025,,120419,,,A,V*07
+    # $GNGGA,003956.00,4552.65403,S,17030.00668,E,1,12,0.64,14.2,M,1.8,M,,*56
+    # $GNGST,003956.00,235111,,,,2.3,3.5,4.0*46
+    first = fixes[0]
+    assert (first.lat_deg, first.lon_deg) == (-(45 + 52.65403 / 60), 170 + 30.00668 / 60)
+    assert (first.alt_m, first.num_sats, first.hdop, first.cog_rad) == (14.2 + 1.8, 12, 0.64, None)
+    assert (first.sigma_n_m, first.sigma_e_m, first.sigma_d_m) == (2.3, 3.5, 4.0)
+    assert first.t_utc == calendar.timegm((2019, 4, 12, 0, 39, 56))
+    assert (len(fixes), decoder.counters.unassigned) == (29, 0)
+    assert decoder.counters.unsupported == 870  # GSA, GSV, GLL, GBS
+
+
+def test_dual_antenna_heading() -> None:
+    fixes, _ = decode("rst39.log")
+    # $GPHDT,25.50,T*37 is the first HDT
+    assert next(f.heading_rad for f in fixes if f.heading_rad is not None) == math.radians(25.5)
+
+
+@pytest.mark.parametrize(
+    "name",
+    ["greis-binary.log", "oncore-binary.log", "skytraq-bin.log", "rtcm3.log", "rtcm3.2.log"]
+    + ["ublox-zed-f9t-rtcm3.log", "bu303-nofix.log"],
+)
+def test_binary_logs_only_skip_junk(name: str) -> None:
+    fixes, decoder = decode(name)
+    c = decoder.counters
+    assert (fixes, c.sentences_ok, c.parse_errors) == ([], 0, 0)
+    assert c.skipped_bytes > 0.9 * (DATA / name).stat().st_size
+
+
+def test_nmea_between_ubx_frames_is_found() -> None:
+    fixes, decoder = decode("ublox-zed-f9t-ubx_nmea_l5.log")
+    data = (DATA / "ublox-zed-f9t-ubx_nmea_l5.log").read_bytes()
+    assert len(fixes) == data.count(b"$GNGGA") == 9
+    assert decoder.counters.by_type["GGA"] == 9 and decoder.counters.skipped_bytes > 15000
+
+
+@pytest.mark.parametrize(("name", "expected"), [("skytraq.log", 17), ("ublox-lea-5q.log", 10)])
+def test_no_fix_logs_give_quality_none(name: str, expected: int) -> None:
+    fixes, _ = decode(name)
+    assert [f.quality for f in fixes] == [FixQuality.NONE] * expected
+    assert all(f.lat_deg is None and f.alt_m is None and f.sog_mps is None for f in fixes)
+
+
+def test_untimed_no_fix_sentences_with_host_time() -> None:
+    """Telit HE910 before its first fix sends GGA/RMC without time: fixes need host time."""
+    lines = (DATA / "telit-he910.log").read_bytes().splitlines(keepends=True)
+    decoder = NmeaDecoder("telit-he910.log")
+    fixes = [f for i, line in enumerate(lines) for f in decoder.feed(line, 1000.0 + i)]
+    no_fix = sum(line.startswith(b"$GPGGA,,") for line in lines)
+    assert Counter(f.quality for f in fixes) == {FixQuality.NONE: no_fix, FixQuality.GNSS: 187}
+    assert no_fix == 37
+
+
+@pytest.mark.parametrize("name", ["nmea-rtk.log", "ublox-zed-f9p-nmea.log", "gpsdf.log"])
+def test_log_reader_path_gives_the_same_fixes(name: str) -> None:
+    assert list(read_fixes_from_log(DATA / name)) == decode(name)[0]

@@ -1,0 +1,112 @@
+"""NMEA log format (SPEC 3): write, read back, and survive bad lines."""
+
+from __future__ import annotations
+
+import io
+import logging
+import re
+from pathlib import Path
+
+import pytest
+
+from drivers.errors import InputError
+from sim_bus.nmealog import (
+    format_nmea_log_line,
+    parse_nmea_log_line,
+    read_nmea_log,
+    write_nmea_log,
+)
+
+GGA = "$GNGGA,221320.10,5212.0000480,N,01029.9999604,E,4,22,0.70,32.984,M,47.000,M,1.1,0000*58"
+RMC = "$GNRMC,221320.10,A,5212.0000480,N,01029.9999604,E,2.136,334.77,141123,,,R*64"
+
+
+def test_format_and_parse_one_line() -> None:
+    line = format_nmea_log_line(1700000000.123456, GGA)
+    assert line == f"(1700000000.123456) {GGA}"
+    assert parse_nmea_log_line(line + "\r\n") == (1700000000.123456, GGA)
+    assert format_nmea_log_line(None, RMC + "\r\n") == RMC
+
+
+def test_blank_unprefixed_and_junk_lines() -> None:
+    assert parse_nmea_log_line("   \r\n") is None
+    assert parse_nmea_log_line(RMC) == (None, RMC)
+    assert parse_nmea_log_line("\x00\xb5bjunk") == (None, "\x00\xb5bjunk")  # the driver judges it
+
+
+@pytest.mark.parametrize(
+    ("line", "what"),
+    [
+        ("(1700000000.123456 $GNGGA", "no ')' closing the host time"),
+        ("(17000x0000.1) $GNGGA", "not decimal seconds"),
+        ("(-1.0) $GNGGA", "not decimal seconds"),
+        ("(1700000000.1)   ", "nothing after"),
+    ],
+)
+def test_malformed_prefixes_raise_with_what_was_expected(line: str, what: str) -> None:
+    with pytest.raises(InputError, match=re.escape(what)) as info:
+        parse_nmea_log_line(line, "gnss.nmea:7")
+    assert str(info.value).startswith("gnss.nmea:7: ")
+    assert "expected '(<seconds>) $<sentence>'" in str(info.value)
+
+
+def test_written_log_reads_back_identical(tmp_path: Path) -> None:
+    lines = [(1700000000.1 + 0.1 * i, GGA if i % 2 else RMC) for i in range(50)] + [(None, RMC)]
+    path = tmp_path / "gnss.nmea"
+    write_nmea_log(path, lines)
+    back = list(read_nmea_log(path))
+    assert [s for _, s in back] == [s for _, s in lines]
+    assert back[-1][0] is None
+    assert [t for t, _ in back[:-1]] == pytest.approx([t for t, _ in lines[:-1]], abs=5e-7)
+    path2 = tmp_path / "again.nmea"
+    write_nmea_log(path2, back)
+    assert path2.read_bytes() == path.read_bytes()
+
+
+def test_reader_skips_and_reports_bad_lines_without_aborting(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    path = tmp_path / "bad.nmea"
+    path.write_bytes(
+        f"(1700000000.100000) {GGA}\n".encode()
+        + b"\xb5b\x01\x07\xff\xfe binary\r\n"
+        + b"(17000000x0.2) $GNRMC\n"
+        + b"\n"
+        + f"{RMC}\r\n".encode()
+    )
+    with caplog.at_level(logging.WARNING, logger="sim_bus.nmealog"):
+        reader = read_nmea_log(path)
+        got = list(reader)
+    assert got == [(1700000000.1, GGA), (None, "\ufffdb\x01\x07\ufffd\ufffd binary"), (None, RMC)]
+    assert reader.bad_lines == 1
+    assert caplog.messages == [
+        f"skipped malformed NMEA log line: {path}:3: host time '17000000x0.2' is not decimal "
+        "seconds; expected '(<seconds>) $<sentence>', e.g. '(1700000000.123456) $GNGGA,...*hh', "
+        "or no prefix"
+    ]
+
+
+def test_reports_are_rate_limited_but_every_bad_line_counted(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    text = io.StringIO("(bad) x\n" * 25 + f"{GGA}\n")
+    with caplog.at_level(logging.WARNING, logger="sim_bus.nmealog"):
+        reader = read_nmea_log(text, max_reports=3)
+        assert list(reader) == [(None, GGA)]
+    assert reader.bad_lines == 25
+    assert len(caplog.messages) == 3 + 1
+    assert caplog.messages[0].startswith("skipped malformed NMEA log line: <stream>:1: ")
+    assert caplog.messages[-1] == "<stream>: 25 malformed lines skipped in all (22 not shown)"
+
+
+def test_round_trip_of_simulated_receiver_output(tmp_path: Path) -> None:
+    from test_gnss_receiver import straight_truth
+
+    from sim_bus.gnss_receiver import simulate_receiver
+
+    out = simulate_receiver(straight_truth(3.0, (1.0, 0.0)))
+    path = tmp_path / "sim.nmea"
+    write_nmea_log(path, out.lines)
+    back = list(read_nmea_log(path))
+    assert [s for _, s in back] == [line.sentence for line in out.lines]
+    assert [t for t, _ in back] == pytest.approx([a.host_t for a in out.lines], abs=5e-7)
