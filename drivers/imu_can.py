@@ -1,0 +1,540 @@
+"""IMU driver: ADIS16334 register frames from the SPI-to-CAN bridge (SPEC 1) to ImuSample/ImuAux.
+
+Layers, each usable alone:
+
+- :class:`ImuDecoder`, pure (no I/O): fed ``can.Message`` objects in arrival order, it decodes
+  IMU_GYRO / IMU_ACCEL / IMU_AUX through the DBC (one generic path), pairs gyro and accel by
+  SEQ, converts to SI in the body frame, rebuilds sample times from SEQ and DEC, and counts
+  everything that went wrong (:class:`ImuCounters`), warning at a limited rate.
+- :func:`read_bus`: asyncio source over any python-can bus (receive filters set to our ids).
+- :func:`read_log`: the same decoder over a candump ``-L`` log (``sim_bus.canlog``).
+
+Sample time: the IMU's own clock is the truth for the period (``dt = 2^DEC / 819.2`` s, exact),
+and frame arrival only anchors it. The anchor tracks the *earliest* arrival (minimum latency):
+it drops at once to an earlier-than-predicted arrival and rises only slowly (time constant
+``anchor_tau_s``) to follow clock drift, so CAN jitter does not enter the sample times. After a
+gap longer than ``reanchor_gap_s`` or a change of DEC the anchor restarts from the next arrival.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+from collections.abc import AsyncIterator, Iterator
+from dataclasses import dataclass, field
+from enum import Enum, IntFlag
+from pathlib import Path
+from typing import Any, TextIO, cast
+
+import can
+import numpy as np
+import numpy.typing as npt
+from can.typechecking import CanFilter
+
+import dbc
+from drivers.errors import BusError
+from drivers.samples import ImuAux, ImuSample
+from sim_bus.canlog import read_candump
+
+log = logging.getLogger(__name__)
+
+#: Internal sample clock of the ADIS16334; output rate is this / 2^DEC.
+ADIS_CLOCK_HZ = 819.2
+#: 1 g as the accelerometer's mg LSB uses it (SPEC 1).
+STANDARD_GRAVITY = 9.80665
+#: The bits of a 29-bit id that a frame is matched on: PGN and source address, not priority.
+PGN_SA_MASK = 0x03FFFFFF
+_SI_PER_UNIT = {"deg/s": math.pi / 180.0, "g": STANDARD_GRAVITY, "degC": 1.0, "V": 1.0}
+
+
+def c_b_imu_from_rpy_deg(rpy_deg: npt.ArrayLike) -> npt.NDArray[np.float64]:
+    """Mounting rotation C_b^imu = Rz(yaw) Ry(pitch) Rx(roll) (SPEC 5): v_b = C_b^imu v_imu."""
+    roll, pitch, yaw = np.deg2rad(np.asarray(rpy_deg, dtype=float))
+    cr, sr, cp, sp, cy, sy = (
+        np.cos(roll),
+        np.sin(roll),
+        np.cos(pitch),
+        np.sin(pitch),
+        np.cos(yaw),
+        np.sin(yaw),
+    )
+    return np.array(
+        [
+            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+            [-sp, cp * sr, cp * cr],
+        ]
+    )
+
+
+def sample_period_s(dec: int) -> float:
+    """Output sample period for decimation exponent ``dec``: 2^DEC / 819.2 Hz."""
+    return float(2**dec) / ADIS_CLOCK_HZ
+
+
+class DiagStat(IntFlag):
+    """DIAG_STAT register bits (SPEC 1)."""
+
+    SUPPLY_LOW = 1 << 0
+    SUPPLY_HIGH = 1 << 1
+    SPI_ERROR = 1 << 3
+    OVERRANGE = 1 << 4
+    SELFTEST_FAIL = 1 << 5
+    ST_XGYRO = 1 << 10
+    ST_YGYRO = 1 << 11
+    ST_ZGYRO = 1 << 12
+    ST_XACCL = 1 << 13
+    ST_YACCL = 1 << 14
+    ST_ZACCL = 1 << 15
+
+
+class ImuFrame(Enum):
+    """The bridge's three frames, valued by their DBC message names."""
+
+    GYRO = "IMU_GYRO"
+    ACCEL = "IMU_ACCEL"
+    AUX = "IMU_AUX"
+
+
+@dataclass(frozen=True)
+class ImuCanIds:
+    """29-bit ids of the bridge's frames; matched on PGN and source address, not priority."""
+
+    gyro: int
+    accel: int
+    aux: int
+
+    @classmethod
+    def for_source_address(cls, source_address: int = 0x80) -> ImuCanIds:
+        """The DBC's ids (priority and PGN) with ``source_address`` as the last byte."""
+        db = dbc.load(dbc.IMU_DBC)
+        sa = source_address & 0xFF
+        ids = {f: (db.get_message_by_name(f.value).frame_id & ~0xFF) | sa for f in ImuFrame}
+        return cls(gyro=ids[ImuFrame.GYRO], accel=ids[ImuFrame.ACCEL], aux=ids[ImuFrame.AUX])
+
+    def by_frame(self) -> dict[ImuFrame, int]:
+        """Id of each frame."""
+        return {ImuFrame.GYRO: self.gyro, ImuFrame.ACCEL: self.accel, ImuFrame.AUX: self.aux}
+
+    def can_filters(self) -> list[CanFilter]:
+        """python-can receive filters passing only these frames (any priority)."""
+        return [
+            {"can_id": i & PGN_SA_MASK, "can_mask": PGN_SA_MASK, "extended": True}
+            for i in self.by_frame().values()
+        ]
+
+
+@dataclass(frozen=True)
+class ImuCanConfig:
+    """Driver settings. Times in seconds of the frames' (host) clock."""
+
+    ids: ImuCanIds = field(default_factory=ImuCanIds.for_source_address)
+    mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    bridge_latency_s: float = 0.0005  # nominal sample instant -> frame arrival
+    anchor_tau_s: float = 10.0  # how slowly the time anchor may rise (clock drift)
+    reanchor_gap_s: float = 0.5  # arrival gap after which the time anchor restarts
+    pair_timeout_s: float = 0.05  # a half (gyro or accel) waits this long for its partner
+    warn_interval_s: float = 10.0  # at most one warning per kind per this much frame time
+
+
+@dataclass
+class ImuCounters:
+    """What the decoder has seen. ``samples + lost + out_of_order`` spans the SEQ stream."""
+
+    frames: int = 0  # frames with one of our ids
+    ignored: int = 0  # other frames the decoder was fed
+    samples: int = 0  # ImuSample emitted
+    aux: int = 0  # ImuAux emitted
+    lost: int = 0  # samples that never arrived (SEQ gaps not filled later)
+    duplicates: int = 0  # samples whose SEQ was already emitted
+    out_of_order: int = 0  # samples that arrived after a later one (dropped, not emitted)
+    malformed: int = 0  # our ids with wrong DLC, remote/standard frame or bad reserved bits
+    unpaired: int = 0  # gyro or accel halves whose partner never came
+    alarms: int = 0  # samples with an EA bit set
+    saturated: int = 0  # samples with some axis at the end of its register range
+    no_new_data: int = 0  # samples with an ND bit clear
+    reanchors: int = 0  # time anchor restarts (long gap, DEC change)
+
+
+class WarningKind(Enum):
+    """Kinds of rate-limited warnings, one limit each."""
+
+    LOST = "lost samples"
+    DUPLICATE = "duplicate sample"
+    OUT_OF_ORDER = "out-of-order sample"
+    MALFORMED = "malformed frame"
+    UNPAIRED = "unpaired frame"
+    ALARM = "IMU alarm"
+    SATURATED = "saturated axis"
+    NO_NEW_DATA = "stale data"
+    REANCHOR = "time re-anchored"
+
+
+@dataclass
+class _RateLimit:
+    last_t: float = -math.inf
+    suppressed: int = 0
+
+
+_TRIADS = {ImuFrame.GYRO: "GYRO", ImuFrame.ACCEL: "ACCL"}
+
+
+@dataclass(frozen=True)
+class _Triad:
+    """Signal names of the three axis words of IMU_GYRO or IMU_ACCEL, from the DBC."""
+
+    out: tuple[str, ...]
+    ea: tuple[str, ...]
+    nd: tuple[str, ...]
+    low: float  # at or below: saturated (within half an LSB of the register minimum)
+    high: float
+    si_per_unit: float
+
+    @classmethod
+    def from_dbc(cls, definition: Any) -> _Triad:
+        name = next(v for f, v in _TRIADS.items() if f.value == definition.name)
+        out = tuple(f"{a}{name}_OUT" for a in "XYZ")
+        sig = definition.get_signal_by_name(out[0])
+        return cls(
+            out=out,
+            ea=tuple(f"{a}{name}_EA" for a in "XYZ"),
+            nd=tuple(f"{a}{name}_ND" for a in "XYZ"),
+            low=sig.minimum + sig.scale / 2,
+            high=sig.maximum - sig.scale / 2,
+            si_per_unit=_SI_PER_UNIT[sig.unit],
+        )
+
+
+@dataclass(frozen=True, slots=True)
+class _Half:
+    """One decoded IMU_GYRO or IMU_ACCEL frame, SI, IMU axes."""
+
+    t_arrival: float
+    v_imu: npt.NDArray[np.float64]
+    dec: int | None  # only the gyro frame carries DEC
+    alarm: bool
+    new_data: bool
+    saturated: bool
+
+
+class ImuDecoder:
+    """Pure decoder: ``feed(msg)`` returns the ImuSample/ImuAux that the frame completes."""
+
+    def __init__(self, config: ImuCanConfig | None = None) -> None:
+        self.config = config or ImuCanConfig()
+        self.counters = ImuCounters()
+        self.c_b_imu = c_b_imu_from_rpy_deg(self.config.mounting_rpy_deg)
+        db = dbc.load(dbc.IMU_DBC)
+        self._frames = {
+            i & PGN_SA_MASK: (f, db.get_message_by_name(f.value), i)
+            for f, i in self.config.ids.by_frame().items()
+        }
+        self._triads = {f: _Triad.from_dbc(db.get_message_by_name(f.value)) for f in _TRIADS}
+        diag = [
+            s
+            for s in db.get_message_by_name(ImuFrame.AUX.value).signals
+            if s.name.startswith("DIAG_")
+        ]
+        base = min(s.start for s in diag)
+        self._diag_bits = {s.name: s.start - base for s in diag}
+        self._pending: dict[tuple[ImuFrame, int], _Half] = {}
+        self._warned: dict[WarningKind, _RateLimit] = {}
+        self._dec: int | None = None
+        self._dt = 0.0
+        self._n_last = 0  # absolute index of the last emitted sample
+        self._n_first = 0
+        self._seq_last = 0
+        self._a_last = 0.0  # arrival of the last emitted sample
+        self._offset = 0.0  # t_arrival_min(n) = offset + n dt
+        self._missing: set[int] = set()
+
+    def feed(self, msg: can.Message) -> list[ImuSample | ImuAux]:
+        """Decode one frame; returns what it completes (usually nothing or one item)."""
+        entry = self._frames.get(msg.arbitration_id & PGN_SA_MASK)
+        if entry is None or msg.is_error_frame:
+            self.counters.ignored += 1
+            return []
+        frame, definition, frame_id = entry
+        self.counters.frames += 1
+        t = float(msg.timestamp)
+        self._evict_stale_halves(t)
+        length = definition.length
+        if not msg.is_extended_id or msg.is_remote_frame or len(msg.data) != length:
+            what = (
+                f"{frame.value} frame id 0x{msg.arbitration_id:X} "
+                f"(extended {msg.is_extended_id}, remote {msg.is_remote_frame}, "
+                f"{len(msg.data)} bytes)"
+            )
+            return self._malformed(t, what, f"an extended data frame of {length} bytes")
+        values = cast(dict[str, Any], definition.decode(bytes(msg.data), decode_choices=False))
+        if frame is ImuFrame.AUX:
+            return [self._aux(t, values)]
+        reserved = int(values["RESERVED"])
+        expected_reserved = 0xF if frame is ImuFrame.GYRO else 0xFF
+        if reserved != expected_reserved:
+            return self._malformed(
+                t,
+                f"{frame.value} id 0x{frame_id:X} reserved bits 0x{reserved:X}",
+                f"0x{expected_reserved:X} (reserved bits sent as 1)",
+            )
+        return self._half(frame, t, values)
+
+    def finish(self) -> None:
+        """End of input: any half still waiting for its partner is unpaired."""
+        self._evict_stale_halves(math.inf)
+
+    @property
+    def dt(self) -> float:
+        """Current nominal sample period (0 before the first sample)."""
+        return self._dt
+
+    def _half(self, frame: ImuFrame, t: float, values: dict[str, Any]) -> list[ImuSample | ImuAux]:
+        tri = self._triads[frame]
+        raw = [values[n] for n in tri.out]
+        half = _Half(
+            t_arrival=t,
+            v_imu=np.array(raw, dtype=float) * tri.si_per_unit,
+            dec=int(values["DEC"]) if frame is ImuFrame.GYRO else None,
+            alarm=any(values[n] for n in tri.ea),
+            new_data=all(values[n] for n in tri.nd),
+            saturated=any(v <= tri.low or v >= tri.high for v in raw),
+        )
+        seq = int(values["SEQ"])
+        other = ImuFrame.ACCEL if frame is ImuFrame.GYRO else ImuFrame.GYRO
+        partner = self._pending.pop((other, seq), None)
+        if partner is None:
+            if self._pending.pop((frame, seq), None) is not None:
+                self._unpaired(t, frame, seq, "a second one of the same SEQ")
+            self._pending[(frame, seq)] = half
+            return []
+        gyro, accel = (half, partner) if frame is ImuFrame.GYRO else (partner, half)
+        return self._sample(seq, gyro, accel)
+
+    def _sample(self, seq: int, gyro: _Half, accel: _Half) -> list[ImuSample | ImuAux]:
+        assert gyro.dec is not None
+        a = min(gyro.t_arrival, accel.t_arrival)
+        c = self.counters
+        if gyro.dec != self._dec:
+            start = self._dec is None
+            self._dec, self._dt = gyro.dec, sample_period_s(gyro.dec)
+            n = 0 if start else self._n_last + 1
+            self._n_first = n
+            self._missing.clear()
+            self._anchor(a, n, seq, None if start else f"DEC changed to {gyro.dec}")
+        else:
+            k = (seq - self._seq_last) % 256
+            k = k - 256 if k >= 128 else k
+            elapsed = (a - self._a_last) / self._dt
+            if elapsed > 96:  # SEQ alone is ambiguous after half a wrap: unwrap with time
+                k += 256 * round((elapsed - k) / 256)
+            if k <= 0:
+                self._late(a, self._n_last + k, seq)
+                return []
+            n = self._n_last + k
+            if k > 1:
+                c.lost += k - 1
+                self._missing.update(range(max(n - 256, self._n_last + 1), n))
+                self._warn(
+                    WarningKind.LOST,
+                    a,
+                    f"{k - 1} IMU samples lost before SEQ {seq} "
+                    f"(id 0x{self.config.ids.gyro:X}); expected SEQ {(self._seq_last + 1) % 256}",
+                )
+            r = a - (self._offset + n * self._dt)
+            if a - self._a_last > self.config.reanchor_gap_s or r < -0.5 * self._dt:
+                self._anchor(
+                    a,
+                    n,
+                    seq,
+                    f"{a - self._a_last:.3f} s gap in IMU frames"
+                    if r >= 0
+                    else f"IMU frames {-r * 1e3:.2f} ms earlier than predicted",
+                )
+            else:
+                self._offset += r if r < 0 else r * min(1.0, self._dt / self.config.anchor_tau_s)
+        self._n_last, self._seq_last, self._a_last = n, seq, a
+        if len(self._missing) > 512:
+            self._missing = {i for i in self._missing if i > n - 256}
+        alarm = gyro.alarm or accel.alarm
+        saturated = gyro.saturated or accel.saturated
+        c.samples += 1
+        if alarm:
+            c.alarms += 1
+            self._warn(
+                WarningKind.ALARM,
+                a,
+                f"EA bit set in SEQ {seq}: a DIAG_STAT flag is set "
+                "(see IMU_AUX); expected EA clear",
+            )
+        if saturated:
+            c.saturated += 1
+            self._warn(
+                WarningKind.SATURATED,
+                a,
+                f"IMU axis at the end of its register range "
+                f"in SEQ {seq}; expected |value| below the 14-bit limit",
+            )
+        if not (gyro.new_data and accel.new_data):
+            c.no_new_data += 1
+            self._warn(
+                WarningKind.NO_NEW_DATA,
+                a,
+                f"ND bit clear in SEQ {seq}: register read "
+                "before new data; expected ND set on every sample",
+            )
+        return [
+            ImuSample(
+                t=self._offset + n * self._dt - self.config.bridge_latency_s,
+                dt=self._dt,
+                w_ib_b=self.c_b_imu @ gyro.v_imu,
+                f_ib_b=self.c_b_imu @ accel.v_imu,
+                seq=seq,
+                alarm=alarm,
+                saturated=saturated,
+            )
+        ]
+
+    def _anchor(self, a: float, n: int, seq: int, reason: str | None) -> None:
+        self._offset = a - n * self._dt
+        if reason is not None:
+            self.counters.reanchors += 1
+            self._warn(WarningKind.REANCHOR, a, f"IMU time re-anchored at SEQ {seq}: {reason}")
+
+    def _late(self, a: float, n: int, seq: int) -> None:
+        c = self.counters
+        if n in self._missing or n < self._n_first:
+            self._missing.discard(n)
+            if n >= self._n_first:
+                c.lost -= 1
+            c.out_of_order += 1
+            self._warn(
+                WarningKind.OUT_OF_ORDER,
+                a,
+                f"IMU sample SEQ {seq} arrived after SEQ "
+                f"{self._seq_last} and was dropped; expected increasing SEQ",
+            )
+        else:
+            c.duplicates += 1
+            self._warn(
+                WarningKind.DUPLICATE,
+                a,
+                f"IMU sample SEQ {seq} received again "
+                f"(last SEQ {self._seq_last}); expected each SEQ once",
+            )
+
+    def _aux(self, t: float, values: dict[str, Any]) -> ImuAux:
+        self.counters.aux += 1
+        diag = sum(int(values[n]) << bit for n, bit in self._diag_bits.items())
+        if diag:
+            self._warn(
+                WarningKind.ALARM, t, f"IMU DIAG_STAT 0x{diag:04X} ({DiagStat(diag)!r}); expected 0"
+            )
+        return ImuAux(
+            t=t - self.config.bridge_latency_s,
+            temp_c=float(values["TEMP_OUT"]),
+            supply_v=float(values["SUPPLY_OUT"]),
+            diag_stat=diag,
+            smpl_prd=int(values["SMPL_PRD"]),
+        )
+
+    def _evict_stale_halves(self, t: float) -> None:
+        limit = t - self.config.pair_timeout_s
+        for key in [k for k, h in self._pending.items() if h.t_arrival < limit]:
+            del self._pending[key]
+            self._unpaired(t, key[0], key[1], f"no partner within {self.config.pair_timeout_s} s")
+
+    def _unpaired(self, t: float, frame: ImuFrame, seq: int, why: str) -> None:
+        self.counters.unpaired += 1
+        other = ImuFrame.ACCEL if frame is ImuFrame.GYRO else ImuFrame.GYRO
+        self._warn(
+            WarningKind.UNPAIRED,
+            t,
+            f"{frame.value} SEQ {seq} dropped: {why}; expected "
+            f"one {other.value} (id 0x{self.config.ids.by_frame()[other]:X}) per SEQ",
+        )
+
+    def _malformed(self, t: float, what: str, expected: str) -> list[ImuSample | ImuAux]:
+        self.counters.malformed += 1
+        self._warn(WarningKind.MALFORMED, t, f"malformed {what} dropped; expected {expected}")
+        return []
+
+    def _warn(self, kind: WarningKind, t: float, text: str) -> None:
+        """Log at most one warning of ``kind`` per ``warn_interval_s`` of frame time."""
+        state = self._warned.setdefault(kind, _RateLimit())
+        if math.isfinite(t) and t - state.last_t < self.config.warn_interval_s:
+            state.suppressed += 1
+            return
+        more = (
+            f" ({state.suppressed} more {kind.value} warnings suppressed)"
+            if state.suppressed
+            else ""
+        )
+        log.warning("%s%s", text, more)
+        state.last_t, state.suppressed = t, 0
+
+
+_BUS_FAILED = can.Message(arbitration_id=0x1FFFFFFF, is_extended_id=True, data=b"")
+
+
+class _Reader(can.AsyncBufferedReader):
+    """AsyncBufferedReader that turns a receive error into the end of the stream."""
+
+    error: BaseException | None = None
+
+    def on_error(self, exc: Exception) -> None:
+        self.fail(exc)
+
+    def fail(self, exc: BaseException) -> None:
+        self.error = exc
+        self.buffer.put_nowait(_BUS_FAILED)
+
+
+async def read_bus(
+    bus: can.BusABC, decoder: ImuDecoder | None = None
+) -> AsyncIterator[ImuSample | ImuAux]:
+    """Yield ImuSample/ImuAux from a python-can bus until it fails (then raise BusError).
+
+    Sets the bus's receive filters to the IMU ids, so unrelated traffic is dropped early (in the
+    kernel for socketcan). The frames are read with ``can.Notifier(..., loop=loop)``; a receive
+    error in loop mode reaches only the loop's exception handler (python-can issue #1912), so
+    one is installed for the duration that ends this stream with :class:`BusError`.
+    """
+    decoder = decoder or ImuDecoder()
+    loop = asyncio.get_running_loop()
+    reader = _Reader()
+    previous = loop.get_exception_handler()
+
+    def handler(lp: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
+        exc = context.get("exception")
+        if isinstance(exc, can.CanError | OSError):
+            reader.fail(exc)
+        elif previous is not None:
+            previous(lp, context)
+        else:
+            lp.default_exception_handler(context)
+
+    bus.set_filters(decoder.config.ids.can_filters())
+    loop.set_exception_handler(handler)
+    notifier = can.Notifier(bus, [reader], loop=loop)
+    try:
+        async for msg in reader:
+            if msg is _BUS_FAILED:
+                raise BusError(f"CAN bus {bus.channel_info} failed: {reader.error}") from (
+                    reader.error
+                )
+            for item in decoder.feed(msg):
+                yield item
+    finally:
+        notifier.stop()
+        loop.set_exception_handler(previous)
+
+
+def read_log(
+    source: str | Path | TextIO, decoder: ImuDecoder | None = None
+) -> Iterator[ImuSample | ImuAux]:
+    """Yield ImuSample/ImuAux from a candump ``-L`` log (malformed lines skipped and counted)."""
+    decoder = decoder or ImuDecoder()
+    for msg in read_candump(source):
+        yield from decoder.feed(msg)
+    decoder.finish()
