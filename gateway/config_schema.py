@@ -8,9 +8,16 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import sys
 import types
 import typing
+from pathlib import Path
 from typing import Any, TypeVar, Union
+
+if sys.version_info >= (3, 11):
+    import tomllib
+else:  # pragma: no cover - Python 3.10
+    import tomli as tomllib
 
 T = TypeVar("T")
 
@@ -19,18 +26,39 @@ class ConfigError(ValueError):
     """A config file or value is wrong; the message says which key, the value and what fits."""
 
 
+def load_toml(path: str | Path) -> dict[str, Any]:
+    """Read a TOML file; an unreadable or invalid file is a ConfigError naming the file."""
+    try:
+        with Path(path).open("rb") as f:
+            return tomllib.load(f)
+    except OSError as err:
+        raise ConfigError(f"{path}: cannot read config file: {err.strerror}") from None
+    except tomllib.TOMLDecodeError as err:
+        raise ConfigError(f"{path}: not valid TOML: {err}") from None
+
+
 def _describe(tp: Any) -> str:
     origin = typing.get_origin(tp)
     if origin in (Union, types.UnionType):
         return " or ".join(_describe(a) for a in typing.get_args(tp))
     if origin is tuple:
         args = typing.get_args(tp)
+        if len(args) == 2 and args[1] is Ellipsis:
+            return f"a list of {_describe(args[0])}"
         return f"a list of {len(args)} numbers" if args else "a list"
+    if origin is typing.Literal:
+        return "one of " + ", ".join(repr(a) for a in typing.get_args(tp))
+    if _is_namedtuple(tp):
+        return f"a list [{', '.join(tp._fields)}]"
     if tp is type(None):
         return "absent"
     return {float: "a number", int: "an integer", bool: "true or false", str: "a string"}.get(
         tp, getattr(tp, "__name__", str(tp))
     )
+
+
+def _is_namedtuple(tp: Any) -> bool:
+    return isinstance(tp, type) and issubclass(tp, tuple) and hasattr(tp, "_fields")
 
 
 def _convert(value: Any, tp: Any, where: str) -> Any:
@@ -45,6 +73,21 @@ def _convert(value: Any, tp: Any, where: str) -> Any:
             except ConfigError:
                 pass
         raise ConfigError(f"{where} = {value!r}: expected {_describe(tp)}")
+    if origin is typing.Literal:
+        if value in typing.get_args(tp):
+            return value
+        raise ConfigError(f"{where} = {value!r}: expected {_describe(tp)}")
+    if _is_namedtuple(tp):
+        hints = typing.get_type_hints(tp)
+        if not isinstance(value, list | tuple) or len(value) != len(tp._fields):
+            raise ConfigError(f"{where} = {value!r}: expected {_describe(tp)}")
+        items = zip(tp._fields, value, strict=True)
+        return tp(*(_convert(v, hints[name], f"{where}.{name}") for name, v in items))
+    if origin is tuple and len(typing.get_args(tp)) == 2 and typing.get_args(tp)[1] is Ellipsis:
+        if not isinstance(value, list | tuple):
+            raise ConfigError(f"{where} = {value!r}: expected {_describe(tp)}")
+        item = typing.get_args(tp)[0]
+        return tuple(_convert(v, item, f"{where}[{i}]") for i, v in enumerate(value))
     if origin is tuple:
         args = typing.get_args(tp)
         if not isinstance(value, list | tuple) or len(value) != len(args):
@@ -70,8 +113,10 @@ def _convert(value: Any, tp: Any, where: str) -> Any:
     raise ConfigError(f"{where} = {value!r}: expected {_describe(tp)}")
 
 
-def from_table(cls: type[T], table: dict[str, Any], where: str = "") -> T:
+def from_table(cls: type[T], table: dict[str, Any], where: str = "", base: T | None = None) -> T:
     """Instantiate dataclass ``cls`` from a TOML table; unknown keys are errors that name them.
+
+    Keys absent from the table keep the field defaults, or the values of ``base`` if given.
 
     Fields may carry ``metadata={"check": fn}`` where ``fn(value)`` returns an error text
     (what is expected) or None; it runs after type conversion.
@@ -91,7 +136,10 @@ def from_table(cls: type[T], table: dict[str, Any], where: str = "") -> T:
         if check is not None and (problem := check(converted)):
             raise ConfigError(f"{prefix}{key} = {value!r}: expected {problem}")
         kwargs[key] = converted
-    return cls(**kwargs)
+    try:
+        return dataclasses.replace(base, **kwargs) if base is not None else cls(**kwargs)  # type: ignore[type-var]
+    except ValueError as err:  # a dataclass's own __post_init__ check
+        raise ConfigError(f"[{where}] {err}") from None
 
 
 def in_range(lo: float, hi: float) -> dict[str, Any]:

@@ -1,0 +1,180 @@
+"""Built-in simulation scenarios and the function that turns one into logs and truth.
+
+A scenario is the vehicle motion plus the sensors on it: the ADIS16334 behind its CAN
+bridge and the RTK receiver. :func:`generate` writes what the real sensors would put on
+the wires, in the log formats of SPEC 3, with the truth beside it:
+
+- ``imu.log``    candump ``-L`` lines of IMU_GYRO / IMU_ACCEL / IMU_AUX (SPEC 1)
+- ``gnss.nmea``  host-stamped NMEA 0183 sentences (SPEC 2)
+- ``truth.npz``  :class:`sim_bus.truth.Truth`, including the IMU's true biases
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from drivers.samples import FixQuality
+from gateway.config_schema import ConfigError, from_table
+from sim_bus.adis16334 import Adis16334Config, Adis16334Output, simulate
+from sim_bus.canlog import write_candump
+from sim_bus.gnss_receiver import (
+    FixInterval,
+    GnssReceiverConfig,
+    ReceiverOutput,
+    simulate_receiver,
+)
+from sim_bus.imu_frames import BridgeConfig, frames
+from sim_bus.nmealog import write_nmea_log
+from sim_bus.truth import Truth
+from sim_bus.vehicle import VEHICLE_PRESETS, VehicleConfig, simulate_vehicle
+
+IMU_LOG = "imu.log"
+GNSS_LOG = "gnss.nmea"
+TRUTH_FILE = "truth.npz"
+
+#: Default host-clock start of a run (UTC s): 2023-11-14 22:13:20.
+T0_S = 1_700_000_000.0
+
+DEG = math.pi / 180.0
+
+
+@dataclass(frozen=True)
+class Scenario:
+    """Vehicle motion plus sensors. ``seed`` draws every random part of one run."""
+
+    name: str
+    description: str
+    vehicle: VehicleConfig
+    imu: Adis16334Config = field(default_factory=Adis16334Config)
+    bridge: BridgeConfig = field(default_factory=BridgeConfig)
+    gnss: GnssReceiverConfig = field(default_factory=GnssReceiverConfig)
+    t0_s: float = T0_S
+
+
+@dataclass(frozen=True)
+class SimRun:
+    """What :func:`generate` wrote, and how much."""
+
+    imu_log: Path
+    gnss_log: Path
+    truth_file: Path
+    imu_samples: int
+    can_frames: int
+    nmea_lines: int
+    duration_s: float
+
+
+_OUTAGES = (
+    FixInterval(180.0, 210.0, FixQuality.RTK_FLOAT),
+    FixInterval(210.0, 240.0, FixQuality.DGNSS),
+    FixInterval(240.0, 260.0, FixQuality.NONE),
+    FixInterval(260.0, 300.0, FixQuality.RTK_FLOAT),
+    FixInterval(520.0, 525.0, FixQuality.NONE),
+    FixInterval(700.0, 760.0, FixQuality.GNSS),
+)
+
+SCENARIOS: dict[str, Scenario] = {
+    "field": Scenario(
+        "field",
+        "~16 min: nine 250 m swaths, U-turns both ways, 2-4 deg side slopes, RTK fixed",
+        VEHICLE_PRESETS["field"],
+    ),
+    "hillside": Scenario(
+        "hillside",
+        "~9 min on a 5-8 deg side slope whose roll sign flips every pass",
+        VEHICLE_PRESETS["hillside"],
+    ),
+    "headland-reversing": Scenario(
+        "headland-reversing",
+        "~8 min of narrow swaths; every headland turn is a fishtail with ~12 m of reversing",
+        VEHICLE_PRESETS["headland-reversing"],
+    ),
+    "gnss-outage": Scenario(
+        "gnss-outage",
+        "the field run with RTK float, DGNSS, single-point spells and 20 s and 5 s outages",
+        VEHICLE_PRESETS["field"],
+        gnss=GnssReceiverConfig(fix_schedule=_OUTAGES),
+    ),
+    "short": Scenario(
+        "short",
+        "~2 min: 30 s rest, three 50 m passes, a right and a left U-turn (tests, demo)",
+        VEHICLE_PRESETS["short"],
+    ),
+}
+
+
+def scenario_from_toml(table: dict[str, Any], where: str = "scenario") -> Scenario:
+    """A scenario from a TOML document: ``base = "field"`` plus overriding tables.
+
+    Tables ``[vehicle]``, ``[imu]``, ``[bridge]``, ``[gnss]`` override fields of the base
+    scenario's configs by name (e.g. ``[imu] gyro_turn_on_bias_rps = [0.001, 0.002, 0]``);
+    an unknown key is an error that names it.
+    """
+    table = dict(table)
+    base_name = table.pop("base", "field")
+    if base_name not in SCENARIOS:
+        raise ConfigError(f"{where}.base = {base_name!r}: expected one of {', '.join(SCENARIOS)}")
+    base = SCENARIOS[base_name]
+    parts: dict[str, Any] = {"name": table.pop("name", f"{base_name}*")}
+    for key in ("vehicle", "imu", "bridge", "gnss"):
+        if key in table:
+            current = getattr(base, key)
+            parts[key] = from_table(type(current), table.pop(key), key, base=current)
+    if "t0_s" in table:
+        parts["t0_s"] = float(table.pop("t0_s"))
+    if table:
+        raise ConfigError(
+            f"unknown key {next(iter(table))!r} in {where}: expected base, name, t0_s, "
+            "[vehicle], [imu], [bridge], [gnss]"
+        )
+    return dataclasses.replace(base, **parts)
+
+
+def _seeded(scenario: Scenario, seed: int) -> tuple[int, Scenario]:
+    """Spread one run seed over the independent random parts: (terrain seed, scenario)."""
+    s_vehicle, s_imu, s_bridge, s_gnss = (
+        int(x) for x in np.random.SeedSequence(seed).generate_state(4)
+    )
+    return s_vehicle, dataclasses.replace(
+        scenario,
+        imu=dataclasses.replace(scenario.imu, seed=s_imu),
+        bridge=dataclasses.replace(scenario.bridge, seed=s_bridge),
+        gnss=dataclasses.replace(scenario.gnss, seed=s_gnss),
+    )
+
+
+def simulate_run(
+    scenario: Scenario, seed: int = 0
+) -> tuple[Truth, Adis16334Output, ReceiverOutput]:
+    """Run the vehicle and the sensor models of one seeded run, in memory."""
+    s_vehicle, sc = _seeded(scenario, seed)
+    truth = simulate_vehicle(sc.vehicle, sc.t0_s, sc.imu.dt_s, s_vehicle)
+    imu_out = simulate(truth.t, truth.w_ib_b, truth.f_ib_b_imu, sc.imu)
+    truth.bias_g_rps = imu_out.bias_g_rps
+    truth.bias_a_mps2 = imu_out.bias_a_mps2
+    return truth, imu_out, simulate_receiver(truth, sc.gnss)
+
+
+def generate(scenario: Scenario, out_dir: str | Path, seed: int = 0) -> SimRun:
+    """Write ``imu.log``, ``gnss.nmea`` and ``truth.npz`` of one seeded run into ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    truth, imu_out, gnss_out = simulate_run(scenario, seed)
+    run = SimRun(
+        imu_log=out / IMU_LOG,
+        gnss_log=out / GNSS_LOG,
+        truth_file=out / TRUTH_FILE,
+        imu_samples=len(truth),
+        can_frames=write_candump(out / IMU_LOG, frames(imu_out, _seeded(scenario, seed)[1].bridge)),
+        nmea_lines=len(gnss_out.lines),
+        duration_s=float(truth.t[-1] - truth.t[0]),
+    )
+    write_nmea_log(run.gnss_log, gnss_out.lines)
+    truth.save(run.truth_file)
+    return run
