@@ -1,0 +1,174 @@
+"""The observer engine end to end on exact motion: modes, gates, timing, reference point."""
+
+import math
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+
+from drivers.samples import FixQuality, GnssFix
+from gateway.engine_observer import ObserverEngine
+from gateway.estimator_config import ObserverConfig
+from gateway.geodesy import lla_to_ned
+from gateway.solution import Mode, Solution
+from tests.kinematics import (
+    ORIGIN_LLA,
+    Motion,
+    Segment,
+    gnss_stream,
+    imu_stream,
+    motion_time,
+    run,
+    state_at,
+    with_velocity_offset,
+)
+
+START = [Segment(3.0), Segment(3.0, accel_mps2=1.0)]
+U_TURN = math.pi / 0.3
+HEADLANDS = [
+    Segment(20.05),
+    Segment(U_TURN, yaw_rate_rps=0.3),  # steps off epochs
+    Segment(20.0),
+    Segment(U_TURN, yaw_rate_rps=-0.3),
+]
+LEVER = (0.5, 0.0, -3.0)
+
+
+def _trace(
+    motion: Motion,
+    cfg: ObserverConfig,
+    fixes: list[GnssFix] | None = None,
+    every: int = 41,
+    **imu_kw: Any,
+) -> list[tuple[float, Solution]]:
+    engine = ObserverEngine(cfg)
+    out: list[tuple[float, Solution]] = []
+    fixes = fixes if fixes is not None else gnss_stream(motion, antenna_lever_arm_m=LEVER)
+    run(
+        engine,
+        imu_stream(motion, **imu_kw),
+        fixes,
+        every=every,
+        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
+    )
+    return out
+
+
+def _at(out: list[tuple[float, Solution]], t: float) -> Solution:
+    return min(out, key=lambda ts: abs(ts[0] - t))[1]
+
+
+def _pos_err_m(motion: Motion, t: float, sol: Solution) -> float:
+    assert sol.lat_deg is not None and sol.lon_deg is not None and sol.alt_m is not None
+    ned = lla_to_ned([sol.lat_deg, sol.lon_deg, sol.alt_m], ORIGIN_LLA)
+    return float(np.linalg.norm(ned - state_at(motion, t).p_ned_m[0]))
+
+
+def test_modes_from_start_through_an_outage() -> None:
+    motion = Motion([*START, Segment(60.0), Segment(20.0, yaw_rate_rps=0.1), Segment(20.0)])
+    fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER)
+    fixes = [f for f in fixes if not 70.0 <= motion_time(f.t) < 78.0]
+    out = _trace(motion, ObserverConfig(antenna_lever_arm_m=LEVER), fixes=fixes)
+    assert _at(out, 0.5).mode is Mode.INITIALISING
+    assert _at(out, 2.0).mode is Mode.ALIGNING  # levelled, heading unknown until 1.5 m/s
+    assert _at(out, 10.0).mode is Mode.NAVIGATING
+    assert _at(out, 73.0).mode is Mode.COASTING
+    assert _at(out, 85.0).mode is Mode.NAVIGATING
+    coasting = [(t, s) for t, s in out if 71.5 < t < 78.0]
+    assert all(s.mode is Mode.COASTING and s.convergence.learning_frozen for _, s in coasting)
+    # 8 s open loop in a 0.1 rad/s turn: inertial position still within a few decimetres
+    assert max(_pos_err_m(motion, t, s) for t, s in coasting) < 0.3
+
+
+def test_float_fix_is_degraded() -> None:
+    motion = Motion([*START, Segment(10.0)])
+    fixes = gnss_stream(motion, quality=FixQuality.RTK_FLOAT)
+    assert _trace(motion, ObserverConfig(), fixes=fixes)[-1][1].mode is Mode.DEGRADED
+
+
+def test_reference_point_is_smooth_at_50_hz_and_terrain_compensated() -> None:
+    motion = Motion([*START, *HEADLANDS], roll_rad=math.radians(5.0), pitch_rad=math.radians(2.0))
+    out = _trace(motion, ObserverConfig(antenna_lever_arm_m=LEVER), every=4)  # ~51 Hz
+    late = [(t, s) for t, s in out if t > 30.0]
+    err = [_pos_err_m(motion, t, s) for t, s in late]
+    # a 10 Hz staircase at 3 m/s would be up to 30 cm off; ignoring the 5 deg roll 26 cm
+    assert max(err) < 0.01
+    v_err = [
+        np.linalg.norm(np.array(s.vel_ned_mps) - state_at(motion, t).v_ned_mps[0])
+        for t, s in late
+        if s.vel_ned_mps is not None
+    ]
+    assert max(v_err) < 0.02
+
+
+def test_velocity_glitch_of_5_s_leaves_no_lasting_bias() -> None:
+    motion = Motion([*START, *HEADLANDS * 3])
+    cfg = ObserverConfig(antenna_lever_arm_m=LEVER)
+    bias: dict[str, Any] = {"bias_g_rps": (0.002, -0.002, 0.0), "bias_a_mps2": (0.05, 0.05, 0.0)}
+    clean = gnss_stream(motion, antenna_lever_arm_m=LEVER)
+    glitched = with_velocity_offset(clean, 100.0, 105.0, (0.5, -0.3))
+    ref = _trace(motion, cfg, fixes=clean, **bias)
+    bad = _trace(motion, cfg, fixes=glitched, **bias)
+    during = [s for t, s in bad if 100.0 <= t < 106.0]
+    assert all(s.convergence.learning_frozen for s in during)
+    s_ref, s_bad = ref[-1][1], bad[-1][1]
+    assert s_ref.bias_g_rps is not None and s_bad.bias_g_rps is not None
+    assert s_ref.bias_a_mps2 is not None and s_bad.bias_a_mps2 is not None
+    assert np.abs(np.degrees(s_bad.bias_g_rps - s_ref.bias_g_rps)).max() < 0.002
+    assert np.abs(s_bad.bias_a_mps2 - s_ref.bias_a_mps2).max() < 0.002
+    roll_gap = max(
+        abs(b.roll_rad - r.roll_rad)  # type: ignore[operator]
+        for (t, r), (_, b) in zip(ref, bad, strict=True)
+        if t > 10.0
+    )
+    assert math.degrees(roll_gap) < 0.05
+
+
+def test_configured_receiver_latency_beats_ignoring_it() -> None:
+    motion = Motion([*START, *HEADLANDS * 2])
+    fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, latency_s=0.05)
+
+    def tilt_rms_deg(cfg: ObserverConfig) -> float:
+        out = [(t, s) for t, s in _trace(motion, cfg, fixes=fixes) if t > 30.0]
+        e = [math.hypot(s.roll_rad or 0.0, s.pitch_rad or 0.0) for _, s in out]
+        return math.degrees(math.sqrt(np.mean(np.square(e))))
+
+    ignored = tilt_rms_deg(ObserverConfig(antenna_lever_arm_m=LEVER))
+    handled = tilt_rms_deg(ObserverConfig(antenna_lever_arm_m=LEVER, receiver_latency_s=0.05))
+    synced = tilt_rms_deg(ObserverConfig(antenna_lever_arm_m=LEVER, host_clock_synchronised=True))
+    # 50 ms in a 3 m/s, 0.3 rad/s turn: v w 0.05 = 0.045 m/s^2 of false e (0.26 deg if held
+    # for many tau; the turns last 10 s). Measured: 0.052 deg rms ignored, 0.005 handled.
+    assert ignored > 0.03
+    assert handled < 0.01 and synced < 0.01
+    assert ignored > 5 * handled
+
+
+def test_switching_bias_estimation_off_is_the_baseline() -> None:
+    motion = Motion([*START, *HEADLANDS * 2])
+    bias: dict[str, Any] = {"bias_g_rps": (0.002, -0.002, 0.003), "bias_a_mps2": (0.1, 0.0, 0.0)}
+    on = _trace(motion, ObserverConfig(antenna_lever_arm_m=LEVER), **bias)[-1][1]
+    off = _trace(motion, ObserverConfig(antenna_lever_arm_m=LEVER, estimate_biases=False), **bias)[
+        -1
+    ][1]
+    assert off.bias_g_rps is not None and off.bias_a_mps2 is not None
+    assert not off.bias_g_rps.any() and not off.bias_a_mps2.any()
+    assert off.convergence.learning_frozen and not on.convergence.learning_frozen
+    assert abs(off.pitch_rad or 0.0) > 5 * abs(on.pitch_rad or 0.0)
+    assert on.sigma_tilt_rad is not None and off.sigma_tilt_rad is not None
+    assert on.sigma_tilt_rad < off.sigma_tilt_rad
+
+
+def test_imu_alarm_degrades_and_saturation_for_a_second_is_a_fault() -> None:
+    motion = Motion([*START, Segment(20.0)])
+    imu = imu_stream(motion)
+    engine = ObserverEngine(ObserverConfig())
+    n_alarm = len(imu) - 410  # the last 2 s
+    imu = [replace(s, alarm=True) if k >= n_alarm else s for k, s in enumerate(imu)]
+    run(engine, imu[: n_alarm + 100], gnss_stream(motion))
+    sol = engine.solution()
+    assert sol.mode is Mode.DEGRADED and sol.imu_alarm and sol.imu_ok
+    for s in imu[n_alarm + 100 :]:
+        engine.imu(replace(s, saturated=True))
+    sol = engine.solution()
+    assert sol.mode is Mode.FAULT and not sol.imu_ok
+    assert sol.convergence.learning_frozen

@@ -1,0 +1,147 @@
+"""Heading channel and z-gyro bias KF (ALGORITHMS.md 2, seed 001)."""
+
+import math
+
+import numpy as np
+from numpy.testing import assert_allclose
+
+from gateway.engine_observer import ObserverEngine
+from gateway.estimator_config import ObserverConfig
+from gateway.heading import GyroZBiasKf
+from gateway.solution import Solution
+from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, motion_time, run, state_at
+
+START = [Segment(3.0), Segment(3.0, accel_mps2=1.0)]  # still, then up to 3 m/s
+
+
+def _trace(
+    motion: Motion,
+    cfg: ObserverConfig,
+    bias_g: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    vel_noise: float = 0.0,
+    hdt: bool = False,
+    every: int = 41,
+) -> tuple[ObserverEngine, list[tuple[float, Solution]]]:
+    engine = ObserverEngine(cfg)
+    out: list[tuple[float, Solution]] = []
+    run(
+        engine,
+        imu_stream(motion, bias_g_rps=bias_g, noise_g_rps=0.002, seed=3),
+        gnss_stream(motion, vel_noise_mps=vel_noise, hdt=hdt),
+        every=every,
+        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
+    )
+    return engine, out
+
+
+def _yaw_err_deg(motion: Motion, t: float, sol: Solution) -> float:
+    assert sol.yaw_rad is not None
+    return math.degrees(math.remainder(sol.yaw_rad - state_at(motion, t).yaw_rad[0], 2 * math.pi))
+
+
+def test_scalar_kf_averages_constant_observations() -> None:
+    kf = GyroZBiasKf(sigma0_rps=0.01, walk_rps_per_sqrt_s=0.0)
+    for _ in range(100):
+        kf.predict(1.0)
+        kf.update(0.002 - kf.x_rps, r_rps2=1e-6)
+    assert_allclose(kf.x_rps, 0.002, rtol=1e-3)
+    assert_allclose(kf.p_rps2, 1e-8, rtol=0.02)  # about R / N
+
+
+def test_z_gyro_bias_converges_from_course_over_ground() -> None:
+    bz = math.radians(0.2)
+    u_turn = math.pi / 0.3
+    motion = Motion(
+        [
+            *START,
+            *[
+                Segment(20.0),
+                Segment(u_turn, yaw_rate_rps=0.3),
+                Segment(20.0),
+                Segment(u_turn, yaw_rate_rps=-0.3),
+            ]
+            * 4,
+        ]
+    )
+    engine, out = _trace(motion, ObserverConfig(), bias_g=(0.0, 0.0, bz), vel_noise=0.02)
+    sol = engine.solution()
+    assert sol.bias_g_rps is not None
+    assert abs(math.degrees(sol.bias_g_rps[2]) - 0.2) < 0.01
+    assert sol.convergence.gyro_z
+    late = [abs(_yaw_err_deg(motion, t, s)) for t, s in out if t > 120.0]
+    assert max(late) < 0.3
+
+
+def test_reversing_neither_jumps_180_nor_pulls_heading_backwards() -> None:
+    motion = Motion(
+        [
+            *START,
+            Segment(20.0),
+            Segment(2.0, accel_mps2=-1.5),
+            Segment(2.0),
+            Segment(1.0, accel_mps2=-1.5),
+            Segment(10.0, yaw_rate_rps=0.1),
+            Segment(10.0),
+            Segment(1.0, accel_mps2=1.5),
+            Segment(2.0, accel_mps2=1.5),
+            Segment(20.0),
+        ],
+        yaw0_rad=1.0,
+    )
+    _, out = _trace(motion, ObserverConfig(), vel_noise=0.02)
+    aligned = [(t, s) for t, s in out if t > 7.0]
+    # COG noise at 1.5 m/s is 0.02 / 1.5 rad = 0.8 deg per epoch; tau_heading averages it
+    assert max(abs(_yaw_err_deg(motion, t, s)) for t, s in aligned) < 0.6
+    flags = {round(t): s.reversing for t, s in aligned}
+    assert flags[40] and flags[45]  # driving backwards at 1.5 m/s
+    assert not flags[20] and not flags[29] and not flags[60]  # forward, stopped, forward
+
+
+def test_heading_and_biases_held_while_stationary() -> None:
+    motion = Motion(
+        [
+            *START,
+            Segment(60.0),
+            Segment(3.0, accel_mps2=-1.0),
+            Segment(60.0),
+            Segment(3.0, accel_mps2=1.0),
+            Segment(10.0),
+        ],
+        yaw0_rad=4.0,
+    )
+    _, out = _trace(motion, ObserverConfig(), vel_noise=0.02)
+    stopped = [s for t, s in out if 72.0 < t < 128.0]
+    assert all(s.stationary for s in stopped)
+    assert all(s.convergence.learning_frozen for s in stopped)
+    first, last = stopped[0], stopped[-1]
+    assert first.bias_g_rps is not None and last.bias_g_rps is not None
+    assert first.bias_a_mps2 is not None and last.bias_a_mps2 is not None
+    assert np.array_equal(first.bias_g_rps, last.bias_g_rps)
+    assert np.array_equal(first.bias_a_mps2, last.bias_a_mps2)
+    assert first.yaw_rad is not None and last.yaw_rad is not None
+    # held on the gyro: the change is the (true 0) minus estimated z bias times the stop, plus
+    # the angle random walk of 0.002 rad/s white noise over 56 s (0.06 deg 1-sigma)
+    drift_deg = math.degrees(-first.bias_g_rps[2] * (last.t - first.t))
+    assert abs(math.degrees(last.yaw_rad - first.yaw_rad) - drift_deg) < 0.2
+
+
+def test_ab_line_bearing_holds_heading_when_course_is_unusable() -> None:
+    # creeping at 0.8 m/s (< cog_min_speed) along a 30 deg line with a 0.1 deg/s z bias
+    bz = math.radians(0.1)
+    motion = Motion(
+        [Segment(3.0), Segment(2.0, accel_mps2=1.0), Segment(2.0, accel_mps2=-0.6), Segment(120.0)],
+        yaw0_rad=math.radians(30.0),
+    )
+    _, without = _trace(motion, ObserverConfig(), bias_g=(0.0, 0.0, bz))
+    _, with_ab = _trace(motion, ObserverConfig(ab_line_bearing_deg=210.0), bias_g=(0.0, 0.0, bz))
+    t_end, s_without = without[-1]
+    assert abs(_yaw_err_deg(motion, t_end, s_without)) > 8.0  # drifts 0.1 deg/s for 2 min
+    assert abs(_yaw_err_deg(motion, t_end, with_ab[-1][1])) < 0.5
+
+
+def test_hdt_aligns_and_corrects_heading_at_standstill() -> None:
+    motion = Motion([Segment(60.0)], yaw0_rad=2.5)
+    engine, out = _trace(motion, ObserverConfig(), bias_g=(0.0, 0.0, math.radians(0.2)), hdt=True)
+    sol = engine.solution()
+    assert sol.mode.name == "NAVIGATING"
+    assert abs(_yaw_err_deg(motion, out[-1][0], sol)) < 0.5

@@ -1,0 +1,111 @@
+"""Tereshkov observer: sign conventions, time constant, bias observability (seed 000)."""
+
+import math
+
+import numpy as np
+from numpy.testing import assert_allclose
+
+from gateway.attitude import dcm_from_rpy, rpy_from_dcm
+from gateway.engine_observer import ObserverEngine
+from gateway.estimator_config import GRAVITY_MPS2, ObserverConfig
+from gateway.observer import TereshkovObserver
+from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, run
+
+G = GRAVITY_MPS2
+DT = 0.005  # 200 Hz, 20 samples per 10 Hz GNSS epoch
+
+
+def _run_at_rest(
+    obs: TereshkovObserver,
+    c_true: np.ndarray,
+    seconds: float,
+    bias_g: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> list[float]:
+    """Closed loop at rest: true f_n = -g, GNSS acceleration 0. Returns roll error per epoch."""
+    f_b = tuple((c_true.T @ [0.0, 0.0, -G]).tolist())
+    roll_err = []
+    for _ in range(int(seconds * 10)):
+        s_n = s_e = 0.0
+        for _ in range(20):
+            fp = obs.propagate(bias_g, f_b, DT)
+            s_n += fp[0]
+            s_e += fp[1]
+        obs.correct_tilt(0.0 - s_n / 20, 0.0 - s_e / 20)
+        roll_err.append(rpy_from_dcm(obs.c_bp)[0] - rpy_from_dcm(c_true)[0])
+    return roll_err
+
+
+def test_zero_input_leaves_attitude_and_biases_unchanged() -> None:
+    c = dcm_from_rpy(0.0, 0.0, 1.0)
+    obs = TereshkovObserver(4.0, 40.0, math.radians(45.0), c)
+    obs.learn = True
+    _run_at_rest(obs, c, 600.0)
+    assert_allclose(obs.c_bp, c, atol=1e-12)
+    assert_allclose(obs.bg_hat_rps, 0.0, atol=1e-15)
+    assert_allclose(obs.ba_hat_mps2, 0.0, atol=1e-15)
+
+
+def test_tilt_error_decays_with_time_constant_tau() -> None:
+    c_true = dcm_from_rpy(0.0, 0.0, 0.7)
+    theta0 = math.radians(1.0)
+    obs = TereshkovObserver(4.0, 40.0, math.radians(45.0), dcm_from_rpy(theta0, 0.0, 0.7))
+    err = _run_at_rest(obs, c_true, 12.0)
+    # one epoch of transport delay in the loop: allow 3 %
+    assert_allclose(err[39] / theta0, math.exp(-1.0), rtol=0.03)  # t = 4 s = tau
+    assert_allclose(err[119] / theta0, math.exp(-3.0), rtol=0.06)  # t = 12 s = 3 tau
+    assert all(e > 0 for e in err)  # first order: no overshoot
+
+
+def test_gyro_bias_alone_gives_steady_tilt_b_tau_without_learning() -> None:
+    """Eq. (10) steady state with learning off: w_p = b_g, tilt = b_g tau."""
+    c_true = np.eye(3)
+    obs = TereshkovObserver(4.0, 40.0, math.radians(45.0), c_true)
+    b = math.radians(0.1)
+    err = _run_at_rest(obs, c_true, 40.0, bias_g=(b, 0.0, 0.0))
+    assert_allclose(err[-1], b * 4.0, rtol=0.03)
+
+
+def _engine(
+    motion: Motion,
+    bias_g: tuple[float, float, float] = (0.0, 0.0, 0.0),
+    bias_a: tuple[float, float, float] = (0.0, 0.0, 0.0),
+) -> ObserverEngine:
+    engine = ObserverEngine(ObserverConfig())
+    run(engine, imu_stream(motion, bias_g_rps=bias_g, bias_a_mps2=bias_a), gnss_stream(motion))
+    return engine
+
+
+def test_gyro_xy_bias_converges_on_a_straight_drive() -> None:
+    b = (math.radians(0.1), math.radians(-0.15), 0.0)
+    motion = Motion([Segment(3.0), Segment(3.0, accel_mps2=1.0), Segment(300.0)], yaw0_rad=2.0)
+    sol = _engine(motion, bias_g=b).solution()
+    assert sol.bias_g_rps is not None
+    assert_allclose(np.degrees(sol.bias_g_rps[:2]), [0.1, -0.15], atol=0.002)
+    assert sol.convergence.gyro_xy
+    assert not sol.convergence.accel_xy
+    assert abs(sol.roll_rad or 0.0) < math.radians(0.01)
+
+
+def test_accel_bias_not_learned_straight_but_learned_in_circles() -> None:
+    ba = (0.1, -0.1, 0.0)
+    start = [Segment(3.0), Segment(3.0, accel_mps2=1.0)]
+    straight = _engine(Motion([*start, Segment(200.0)]), bias_a=ba).solution()
+    assert straight.bias_a_mps2 is not None and straight.roll_rad is not None
+    assert np.abs(straight.bias_a_mps2).max() < 1e-3  # unobservable: not learned
+    # ... and it shows up as tilt: roll error = b_ay / g (eq. 8)
+    assert_allclose(straight.roll_rad, -ba[1] / G, atol=2e-4)
+    # headland pattern: straights and half circles alternating right and left. In one
+    # endless circle only b_g + w_z b_a / g is observable (eq. 10); both turn directions
+    # separate the two.
+    u_turn = math.pi / 0.3
+    headlands = [
+        Segment(20.0),
+        Segment(u_turn, yaw_rate_rps=0.3),
+        Segment(20.0),
+        Segment(u_turn, yaw_rate_rps=-0.3),
+    ]
+    turning = _engine(Motion([*start, *headlands * 4]), bias_a=ba).solution()
+    assert turning.bias_a_mps2 is not None and turning.roll_rad is not None
+    assert_allclose(turning.bias_a_mps2[:2], ba[:2], atol=0.005)
+    assert turning.convergence.accel_xy
+    assert abs(turning.roll_rad) < math.radians(0.02)
