@@ -585,9 +585,11 @@ def _text(values: dict[str, Value] | None, name: str) -> str | None:
     return v if isinstance(v, str) else None
 
 
-def read_fixes_from_log(path: str | PathLike[str]) -> Iterator[GnssFix]:
+def read_fixes_from_log(
+    path: str | PathLike[str], decoder: NmeaDecoder | None = None
+) -> Iterator[GnssFix]:
     """Fixes of an NMEA log (SPEC 3 lines, host-stamped or not), with the live decoding code."""
-    decoder = NmeaDecoder(str(path))
+    decoder = decoder or NmeaDecoder(str(path))
     for record, (t_host, sentence) in enumerate(read_nmea_log(path), start=1):
         yield from decoder.feed_line(sentence, t_host, record)
     yield from decoder.flush()
