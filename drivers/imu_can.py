@@ -35,7 +35,7 @@ from can.typechecking import CanFilter
 import dbc
 from drivers.errors import BusError
 from drivers.samples import ImuAux, ImuSample
-from sim_bus.canlog import read_candump
+from sim_bus.canlog import CandumpReader, read_candump
 
 log = logging.getLogger(__name__)
 
@@ -531,10 +531,10 @@ async def read_bus(
 
 
 def read_log(
-    source: str | Path | TextIO, decoder: ImuDecoder | None = None
+    source: str | Path | TextIO | CandumpReader, decoder: ImuDecoder | None = None
 ) -> Iterator[ImuSample | ImuAux]:
     """Yield ImuSample/ImuAux from a candump ``-L`` log (malformed lines skipped and counted)."""
     decoder = decoder or ImuDecoder()
-    for msg in read_candump(source):
+    for msg in source if isinstance(source, CandumpReader) else read_candump(source):
         yield from decoder.feed(msg)
     decoder.finish()

@@ -45,7 +45,7 @@ from os import PathLike
 import pynmea2
 
 from drivers.samples import FixQuality, GnssFix
-from sim_bus.nmealog import read_nmea_log
+from sim_bus.nmealog import NmeaLogReader, read_nmea_log
 
 log = logging.getLogger(__name__)
 
@@ -586,10 +586,11 @@ def _text(values: dict[str, Value] | None, name: str) -> str | None:
 
 
 def read_fixes_from_log(
-    path: str | PathLike[str], decoder: NmeaDecoder | None = None
+    source: str | PathLike[str] | NmeaLogReader, decoder: NmeaDecoder | None = None
 ) -> Iterator[GnssFix]:
     """Fixes of an NMEA log (SPEC 3 lines, host-stamped or not), with the live decoding code."""
-    decoder = decoder or NmeaDecoder(str(path))
-    for record, (t_host, sentence) in enumerate(read_nmea_log(path), start=1):
+    reader = source if isinstance(source, NmeaLogReader) else read_nmea_log(source)
+    decoder = decoder or NmeaDecoder(reader.name)
+    for record, (t_host, sentence) in enumerate(reader, start=1):
         yield from decoder.feed_line(sentence, t_host, record)
     yield from decoder.flush()

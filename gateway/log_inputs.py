@@ -16,6 +16,8 @@ from drivers.errors import InputError
 from drivers.imu_can import ImuCanConfig, ImuDecoder, read_log
 from drivers.nmea import NmeaDecoder, read_fixes_from_log
 from drivers.samples import GnssFix, ImuAux, ImuSample
+from sim_bus.canlog import read_candump
+from sim_bus.nmealog import NmeaLogReader, read_nmea_log
 
 Input = ImuSample | ImuAux | GnssFix
 
@@ -34,8 +36,21 @@ class LogInputs:
                 )
         self.imu_decoder = ImuDecoder(imu_config or ImuCanConfig())
         self.nmea_decoder = NmeaDecoder(str(self.nmea_log))
+        self.can_reader = read_candump(self.can_log)
+        self.nmea_reader: NmeaLogReader | None = None
+
+    @property
+    def bad_can_lines(self) -> int:
+        """Malformed candump lines skipped so far."""
+        return self.can_reader.bad_lines
+
+    @property
+    def bad_nmea_lines(self) -> int:
+        """NMEA log lines with a malformed host-time prefix skipped so far."""
+        return self.nmea_reader.bad_lines if self.nmea_reader else 0
 
     def __iter__(self) -> Iterator[Input]:
-        imu = read_log(self.can_log, self.imu_decoder)
-        gnss = read_fixes_from_log(self.nmea_log, self.nmea_decoder)
+        self.nmea_reader = read_nmea_log(self.nmea_log)
+        imu = read_log(self.can_reader, self.imu_decoder)
+        gnss = read_fixes_from_log(self.nmea_reader, self.nmea_decoder)
         return heapq.merge(imu, gnss, key=attrgetter("t"))

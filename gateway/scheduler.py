@@ -63,7 +63,12 @@ class OutputScheduler:
         self.rates_hz = {Pgn(pgn): rate for pgn, rate in rates.items() if rate > 0}
         self._encoder = encoder or OutputEncoder()
         self._last_slot: dict[Pgn, int] = {}
+        self._next_due_t = -math.inf  # earliest grid point not yet served
         self._sid = SID_MODULO - 1  # the first instant sends SID 0
+
+    def is_due(self, t: float) -> bool:
+        """True when some PGN is due at ``t``: callers skip building a solution otherwise."""
+        return t >= self._next_due_t
 
     def due(self, t: float) -> list[Pgn]:
         """PGNs whose next grid slot has come at time ``t`` (marks them sent)."""
@@ -74,6 +79,10 @@ class OutputScheduler:
             if last is None or slot > last:
                 self._last_slot[pgn] = slot
                 pgns.append(pgn)
+        self._next_due_t = min(
+            ((self._last_slot[p] + 1 - _GRID_TOLERANCE) / r for p, r in self.rates_hz.items()),
+            default=math.inf,
+        )
         return pgns
 
     def frames(self, solution: Solution, loop: LoopStatus) -> list[can.Message]:

@@ -48,6 +48,17 @@ def test_default_rates_over_10_s_give_exact_counts() -> None:
     }
 
 
+def test_is_due_is_true_exactly_at_the_instants_due_sends() -> None:
+    gated, reference = OutputScheduler(), OutputScheduler()
+    asked = []
+    for s in solutions(5.0):
+        if gated.is_due(s.t):
+            asked.append(s.t)
+            assert gated.due(s.t)  # never true in vain
+    sent_reference = [s.t for s in solutions(5.0) if reference.due(s.t)]
+    assert asked == sent_reference and len(asked) == 250  # the 50 Hz instants, none missed
+
+
 def test_rate_zero_turns_a_pgn_off_and_rates_are_configurable() -> None:
     rates = {Pgn.ATTITUDE: 0.0, Pgn.GNSS_POSITION_DATA: 0, Pgn.NAVGW_STATUS: 1.0}
     counts = per_pgn(run(OutputScheduler(rates), solutions(10.0)))
