@@ -1,0 +1,1 @@
+"""One module per ``navgw`` sub-command, each a thin layer over library functions."""

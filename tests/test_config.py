@@ -1,0 +1,80 @@
+"""Service configuration: SPEC 5 keys, one place for defaults, messages that name the problem."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from gateway.config import Engine, GatewayConfig, config_from_table, example_toml, load_config
+from gateway.config_schema import ConfigError, tomllib
+from gateway.j1939 import Pgn
+
+
+def test_spec5_vehicle_keys_reach_the_engine_config() -> None:
+    cfg = config_from_table(
+        {
+            "vehicle": {"antenna_lever_arm_m": [0.0, 0.0, -3.0], "imu_lever_arm_m": [0, 0, -1]},
+            "gnss": {"receiver_latency_s": 0.08},
+            "observer": {"tau_s": 5.0},
+        }
+    )
+    for engine in Engine:
+        tuning = cfg.with_engine(engine).make_engine().cfg  # type: ignore[attr-defined]
+        assert tuning.antenna_lever_arm_m == (0.0, 0.0, -3.0)
+        assert tuning.imu_lever_arm_m == (0.0, 0.0, -1.0)
+        assert tuning.receiver_latency_s == 0.08
+    assert cfg.observer.tau_s == 5.0 and cfg.observer.tau_g_s == 40.0
+
+
+def test_example_is_complete_valid_and_equal_to_the_defaults() -> None:
+    text = example_toml()
+    assert config_from_table(tomllib.loads(text)) == GatewayConfig()
+    for key in ("antenna_lever_arm_m", "imu_mounting_rpy_deg", "attitude_hz = 50.0", "tau_g_s"):
+        assert key in text
+
+
+def test_output_rates_map_to_pgns() -> None:
+    rates = config_from_table({"output": {"attitude_hz": 20, "status_hz": 0}}).output.rates_hz()
+    assert rates[Pgn.ATTITUDE] == 20.0 and rates[Pgn.NAVGW_STATUS] == 0.0
+    assert rates[Pgn.GNSS_POSITION_DATA] == 10.0
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("[vehicel]\n", "unknown section [vehicel] in"),
+        (
+            "[vehicle]\nantenna_lever_arm_m = [0, 0]\n",
+            "vehicle.antenna_lever_arm_m = [0, 0]: expected a list of 3",
+        ),
+        (
+            "[observer]\nantenna_lever_arm_m = [0, 0, 1]\n",
+            "observer.antenna_lever_arm_m: set it once, in [vehicle]",
+        ),
+        (
+            '[estimator]\nengine = "kalman"\n',
+            "estimator.engine = 'kalman': expected one of 'observer', 'ekf'",
+        ),
+        (
+            "[isobus]\npreferred_address = 300\n",
+            "isobus.preferred_address = 300: expected a value in [0, 253]",
+        ),
+        ("[output]\nattitude_hz = -1\n", "output.attitude_hz = -1: expected a value in"),
+        ("[gnss\n", "not valid TOML"),
+    ],
+)
+def test_bad_files_name_file_key_value_and_expectation(
+    tmp_path: Path, text: str, message: str
+) -> None:
+    path = tmp_path / "navgw.toml"
+    path.write_text(text)
+    with pytest.raises(ConfigError) as err:
+        load_config(path)
+    assert str(err.value).startswith(str(path)) and message in str(err.value)
+
+
+def test_missing_file_and_engine_override(tmp_path: Path) -> None:
+    with pytest.raises(ConfigError, match="cannot read config file"):
+        load_config(tmp_path / "absent.toml")
+    assert GatewayConfig().with_engine(Engine.EKF).estimator.engine is Engine.EKF
