@@ -1,0 +1,83 @@
+"""Fixtures for tests on a real SocketCAN bus (vcan) with the real can-utils.
+
+They run where SocketCAN and can-utils exist (CI runs them in the vcan VM of
+shared/tools/vcan-vm/run.sh); elsewhere every test here is skipped with the reason.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import os
+import shutil
+import subprocess
+import sys
+from collections.abc import Iterator
+from pathlib import Path
+
+import can
+import pytest
+
+from gateway.replay import replay
+from sim_bus.scenarios import SCENARIOS, generate
+
+#: Set by .ci/run: a directory that ``python -m tests.vcan.conftest DIR`` filled on the host,
+#: so the emulated guest need not simulate and replay (Python under TCG is ~10x slower).
+PREPARED = "NAVGW_VCAN_PREPARED"
+
+
+def _vcan_problem(channel: str) -> str | None:
+    missing = [t for t in ("candump", "canplayer", "cansend", "ip") if shutil.which(t) is None]
+    if missing:
+        return f"can-utils/iproute2 not installed: {', '.join(missing)}"
+    try:
+        can.Bus(interface="socketcan", channel=channel).shutdown()
+    except (OSError, can.CanError) as err:
+        return f"no SocketCAN interface {channel} here ({err}); run tests/vcan in the vcan VM"
+    return None
+
+
+@pytest.fixture(scope="session")
+def vcan0() -> str:
+    """The name of a real, up vcan interface."""
+    problem = _vcan_problem("vcan0")
+    if problem:
+        pytest.skip(problem)
+    return "vcan0"
+
+
+def prepare(out: Path) -> Path:
+    """Simulate a ~45 s run (rest, one pass, a turn) and replay it: imu.log, gnss.nmea,
+    truth.npz and the gateway's output gateway.log."""
+    base = SCENARIOS["short"]
+    scenario = dataclasses.replace(
+        base, vehicle=dataclasses.replace(base.vehicle, n_passes=2, start_stop_s=15.0)
+    )
+    generate(scenario, out, seed=11)
+    replay(out / "imu.log", out / "gnss.nmea", out / "gateway.log")
+    return out
+
+
+@pytest.fixture(scope="session")
+def sim_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The prepared run (see :func:`prepare`), made here unless CI prepared it on the host."""
+    prepared = os.environ.get(PREPARED)
+    if prepared and (Path(prepared) / "gateway.log").is_file():
+        return Path(prepared)
+    return prepare(tmp_path_factory.mktemp("vcan-sim"))
+
+
+@pytest.fixture
+def candump(vcan0: str, tmp_path: Path) -> Iterator[Path]:
+    """``candump -L`` recording the bus into a file for the duration of the test."""
+    path = tmp_path / "candump.log"
+    with path.open("w") as f:
+        proc = subprocess.Popen(["candump", "-L", vcan0], stdout=f)
+        try:
+            yield path
+        finally:
+            proc.terminate()
+            proc.wait(timeout=5)
+
+
+if __name__ == "__main__":
+    prepare(Path(sys.argv[1]))
