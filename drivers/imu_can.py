@@ -18,7 +18,6 @@ gap longer than ``reanchor_gap_s`` or a change of DEC the anchor restarts from t
 
 from __future__ import annotations
 
-import asyncio
 import logging
 import math
 from collections.abc import AsyncIterator, Iterator
@@ -33,7 +32,7 @@ import numpy.typing as npt
 from can.typechecking import CanFilter
 
 import dbc
-from drivers.errors import BusError
+from drivers.canbus import FrameReader
 from drivers.samples import ImuAux, ImuSample
 from sim_bus.canlog import CandumpReader, read_candump
 
@@ -474,60 +473,19 @@ class ImuDecoder:
         state.last_t, state.suppressed = t, 0
 
 
-_BUS_FAILED = can.Message(arbitration_id=0x1FFFFFFF, is_extended_id=True, data=b"")
-
-
-class _Reader(can.AsyncBufferedReader):
-    """AsyncBufferedReader that turns a receive error into the end of the stream."""
-
-    error: BaseException | None = None
-
-    def on_error(self, exc: Exception) -> None:
-        self.fail(exc)
-
-    def fail(self, exc: BaseException) -> None:
-        self.error = exc
-        self.buffer.put_nowait(_BUS_FAILED)
-
-
 async def read_bus(
     bus: can.BusABC, decoder: ImuDecoder | None = None
 ) -> AsyncIterator[ImuSample | ImuAux]:
     """Yield ImuSample/ImuAux from a python-can bus until it fails (then raise BusError).
 
     Sets the bus's receive filters to the IMU ids, so unrelated traffic is dropped early (in the
-    kernel for socketcan). The frames are read with ``can.Notifier(..., loop=loop)``; a receive
-    error in loop mode reaches only the loop's exception handler (python-can issue #1912), so
-    one is installed for the duration that ends this stream with :class:`BusError`.
+    kernel for socketcan); reading and error handling are :class:`drivers.canbus.FrameReader`'s.
     """
     decoder = decoder or ImuDecoder()
-    loop = asyncio.get_running_loop()
-    reader = _Reader()
-    previous = loop.get_exception_handler()
-
-    def handler(lp: asyncio.AbstractEventLoop, context: dict[str, Any]) -> None:
-        exc = context.get("exception")
-        if isinstance(exc, can.CanError | OSError):
-            reader.fail(exc)
-        elif previous is not None:
-            previous(lp, context)
-        else:
-            lp.default_exception_handler(context)
-
-    bus.set_filters(decoder.config.ids.can_filters())
-    loop.set_exception_handler(handler)
-    notifier = can.Notifier(bus, [reader], loop=loop)
-    try:
-        async for msg in reader:
-            if msg is _BUS_FAILED:
-                raise BusError(f"CAN bus {bus.channel_info} failed: {reader.error}") from (
-                    reader.error
-                )
+    async with FrameReader(bus, decoder.config.ids.can_filters()) as frames:
+        async for msg in frames:
             for item in decoder.feed(msg):
                 yield item
-    finally:
-        notifier.stop()
-        loop.set_exception_handler(previous)
 
 
 def read_log(

@@ -15,7 +15,13 @@ from collections.abc import Sequence
 from gateway import __version__
 
 #: Modules that each contribute one sub-command, in the order ``--help`` lists them.
-COMMAND_MODULES = ("gateway.commands.replay", "sim_bus.cli")
+COMMAND_MODULES = (
+    "gateway.commands.run",
+    "gateway.commands.demo",
+    "gateway.commands.replay",
+    "gateway.commands.config_cmd",
+    "sim_bus.cli",
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

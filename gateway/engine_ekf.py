@@ -316,9 +316,11 @@ class EkfEngine:
         vel = self._gnss_velocity(fix)
         if vel is not None:
             w_e, sig_lever = self._lever_rate(t_e)
-            measurements.append(fuse_velocity(
-                row[_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
-            ))
+            measurements.append(
+                fuse_velocity(
+                    row[_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
+                )
+            )
         if fix.heading_rad is not None:
             measurements.append(fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG))
         dx = np.zeros(N_STATES)
@@ -357,7 +359,10 @@ class EkfEngine:
         assert ins is not None and self._p is not None
         self._t_nhc_s = t
         m = fuse_nonholonomic(
-            np.array(ins.v_ned_mps), ins.c_bn, np.array(ins.w_b_lp_rps), -self._l_imu_b,
+            np.array(ins.v_ned_mps),
+            ins.c_bn,
+            np.array(ins.w_b_lp_rps),
+            -self._l_imu_b,
             self.cfg.nhc_sigma_mps,
         )
         dx = np.zeros(N_STATES)
@@ -601,10 +606,10 @@ class EkfEngine:
             vel_ned_mps=vel,
             bias_g_rps=np.array(ins.bias_g_rps),
             bias_a_mps2=np.array(ins.bias_a_mps2),
-            sigma_tilt_rad=(
-                math.sqrt(0.5 * (p[6, 6] + p[7, 7])) if p is not None else None
-            ),
-            gnss_ok=p is not None and coasting_s == 0.0 and fix is not None
+            sigma_tilt_rad=(math.sqrt(0.5 * (p[6, 6] + p[7, 7])) if p is not None else None),
+            gnss_ok=p is not None
+            and coasting_s == 0.0
+            and fix is not None
             and fix.quality != FixQuality.NONE,
             reversing=self._reversing,
             stationary=self._stationary,
@@ -641,4 +646,3 @@ class EkfEngine:
         ):
             return Mode.DEGRADED
         return Mode.NAVIGATING
-

@@ -1,0 +1,464 @@
+"""The live service (``navgw run``, ``navgw demo``): an asyncio shell around the FusionCore.
+
+Tasks of one event loop (no threads of ours; the estimator is fast and runs inline):
+
+- one CAN task per distinct bus (:class:`~gateway.canbus.BusPlan`): opens the bus, retrying
+  with back-off while it is absent or down, reads it through
+  :class:`~drivers.canbus.FrameReader`, stamps each frame with the service time, records and
+  decodes IMU frames, and passes address claims and requests (not our own echo) on;
+- the GNSS task: fixes from :class:`~drivers.gnss_serial.GnssSerialReader` (which reconnects);
+- the core task: one bounded :class:`Inbox` in, inputs to the
+  :class:`~gateway.fusion.FusionCore` in time order (as replay merges them), output
+  frames sent on the ISOBUS; a failed send is counted and logged at a limited rate, and an
+  interface that is down makes the CAN task reopen the bus;
+- the tick task: advances the claim timers while no IMU frame arrives; the loop's heartbeat;
+- the health task: sd_notify STATUS every few seconds and WATCHDOG=1 while :meth:`healthy`.
+
+Time: every time the core sees (IMU frame arrival, GNSS receive time, claim timers) goes
+through one :class:`~gateway.timebase.TimeBase`: the identity live, a scaled clock in the demo.
+"""
+
+from __future__ import annotations
+
+import asyncio
+import logging
+import math
+import signal
+import time
+from collections import deque
+from dataclasses import dataclass, field
+from typing import Any
+
+import can
+
+from drivers.canbus import FrameReader
+from drivers.errors import BusError
+from drivers.gnss_serial import GnssSerialReader
+from drivers.imu_can import PGN_SA_MASK, ImuDecoder
+from drivers.nmea import NmeaDecoder
+from drivers.samples import GnssFix, ImuAux, ImuSample
+from gateway.address_claim import ClaimState
+from gateway.canbus import BusPlan, BusSpec, EchoFilter, claim_filters, is_bus_down
+from gateway.config import GatewayConfig
+from gateway.fusion import FusionCore
+from gateway.recording import InputRecorder, RecordingNmeaDecoder
+from gateway.replay import imu_config
+from gateway.sdnotify import SdNotifier
+from gateway.timebase import LIVE, TimeBase
+
+log = logging.getLogger(__name__)
+
+INBOX_SIZE = 1024  # inputs between the readers and the core (5 s of IMU samples at 204.8 Hz)
+TICK_S = 0.05  # claim-timer resolution while the IMU is silent, service seconds
+HOLD_MAX_S = 0.2  # a GNSS fix waits at most this long for the IMU to reach its time
+STATUS_INTERVAL_S = 2.0  # sd_notify STATUS, wall seconds
+HEARTBEAT_MAX_S = 2.0  # the tick or the core stalled this long (wall): unhealthy
+LOG_INTERVAL_S = 10.0  # at most one warning per kind of trouble this often (wall)
+CLOCK_MISMATCH_S = 5.0  # frame timestamps this far from the host clock are not host time
+
+
+@dataclass(frozen=True, slots=True)
+class BusFrame:
+    """An address claim or request received from the ISOBUS (timestamp: service time)."""
+
+    msg: can.Message
+
+
+Input = ImuSample | ImuAux | GnssFix | BusFrame
+
+
+class LogLimiter:
+    """At most one warning per ``interval_s`` for one kind of trouble; counts the rest."""
+
+    def __init__(self, logger: logging.Logger, interval_s: float = LOG_INTERVAL_S) -> None:
+        self.logger = logger
+        self.interval_s = interval_s
+        self._last = -math.inf
+        self._suppressed = 0
+
+    def warning(self, text: str, *args: object) -> None:
+        """Log now, or count it if the last warning is recent."""
+        now = time.monotonic()
+        if now - self._last < self.interval_s:
+            self._suppressed += 1
+            return
+        more = f" ({self._suppressed} more since the last report)" if self._suppressed else ""
+        self.logger.warning(text + more, *args)
+        self._last, self._suppressed = now, 0
+
+
+class Inbox:
+    """Bounded queue from the readers to the core. When full, the OLDEST input is dropped:
+    a navigation output must follow the newest data, and a stale backlog only adds latency.
+    Producers never wait, so no reader (and no buffer behind it) grows while the core stalls.
+    """
+
+    def __init__(self, maxsize: int = INBOX_SIZE) -> None:
+        self._queue: asyncio.Queue[Input] = asyncio.Queue(maxsize)
+        self.overloads = 0  # inputs dropped
+        self._log = LogLimiter(log)
+
+    def offer(self, item: Input) -> None:
+        """Queue ``item``, dropping the oldest input if the queue is full."""
+        if self._queue.full():
+            self._queue.get_nowait()
+            self.overloads += 1
+            self._log.warning("fusion loop overloaded: oldest input dropped (%d in all)",
+                              self.overloads)  # fmt: skip
+        self._queue.put_nowait(item)
+
+    async def get(self) -> Input:
+        """The oldest input, waiting for one."""
+        return await self._queue.get()
+
+    def empty(self) -> bool:
+        """True when nothing waits for the core."""
+        return self._queue.empty()
+
+
+@dataclass
+class Backoff:
+    """Retry delays: ``initial_s``, doubling up to ``max_s``; :meth:`reset` after a success."""
+
+    initial_s: float = 0.5
+    max_s: float = 10.0
+    _next_s: float = field(default=0.0, init=False)
+
+    def next(self) -> float:
+        """The delay before the next attempt."""
+        self._next_s = min(self.max_s, 2.0 * self._next_s) if self._next_s else self.initial_s
+        return self._next_s
+
+    def reset(self) -> None:
+        """Start again from ``initial_s``."""
+        self._next_s = 0.0
+
+
+@dataclass
+class BusLink:
+    """One distinct bus and the roles it plays; ``waiting`` says why it is not open."""
+
+    spec: BusSpec
+    imu: bool
+    isobus: bool
+    bus: can.BusABC | None = None
+    reader: FrameReader | None = None
+    waiting: str | None = "not opened yet"
+    reopens: int = 0
+
+    @property
+    def roles(self) -> str:
+        """'IMU', 'ISOBUS' or 'IMU + ISOBUS'."""
+        return " + ".join(r for r, on in (("IMU", self.imu), ("ISOBUS", self.isobus)) if on)
+
+
+@dataclass
+class ServiceStats:
+    """What the shell around the core counted (the core and the decoders count the rest)."""
+
+    frames_sent: int = 0
+    send_errors: int = 0
+    frames_unsent: int = 0  # output while the ISOBUS was not open, or after stop
+    can_frames_dropped: int = 0  # receive buffers full (the loop starved), closed readers
+    imu_rate_hz: float = 0.0  # IMU samples per service second, over the last STATUS interval
+
+
+class GatewayService:
+    """The live gateway: ``await GatewayService(config).run()`` until :meth:`request_stop`."""
+
+    def __init__(
+        self,
+        config: GatewayConfig,
+        *,
+        timebase: TimeBase = LIVE,
+        notifier: SdNotifier | None = None,
+    ) -> None:
+        self.config = config
+        self.timebase = timebase
+        self.notifier = notifier if notifier is not None else SdNotifier({})
+        plan = BusPlan.from_config(config)
+        self.imu_decoder = ImuDecoder(imu_config(config))
+        self.core = FusionCore.from_config(config, self.imu_decoder.counters)
+        self.recorder = (
+            InputRecorder(config.recording, plan.imu.channel, timebase.now)
+            if config.recording.enabled
+            else None
+        )
+        decoder = (
+            RecordingNmeaDecoder(config.gnss.port, self.recorder)
+            if self.recorder is not None
+            else NmeaDecoder(config.gnss.port)
+        )
+        self.gnss = GnssSerialReader(
+            config.gnss.port, config.gnss.baudrate, decoder=decoder, clock=timebase.now
+        )
+        self.links = (
+            [BusLink(plan.imu, imu=True, isobus=True)]
+            if plan.shared
+            else [BusLink(plan.imu, imu=True, isobus=False), BusLink(plan.isobus, False, True)]
+        )
+        self.isobus = self.links[-1]
+        self.inbox = Inbox()
+        self.echo = EchoFilter()
+        self.stats = ServiceStats()
+        self._imu_filters = self.imu_decoder.config.ids.can_filters()
+        self._imu_ids = frozenset(f["can_id"] for f in self._imu_filters)
+        self._stop = asyncio.Event()
+        self._stopping = False
+        self._tasks: list[asyncio.Task[None]] = []
+        self._heartbeat = self._core_progress = time.monotonic()
+        self._last_imu_t = -math.inf  # service time of the last IMU frame
+        self._imu_t = -math.inf  # time of the last IMU sample fed to the core
+        self._held: deque[GnssFix] = deque()  # fixes ahead of the IMU stream
+        self._send_log = LogLimiter(log)
+        self._clock_warned = False
+
+    # --- life cycle -----------------------------------------------------------------------
+
+    def request_stop(self) -> None:
+        """Ask :meth:`run` to stop (signal handlers call this)."""
+        self._stop.set()
+
+    async def run(self) -> int:
+        """Run until :meth:`request_stop`: 0 after a clean stop, 1 if an internal task died.
+
+        Raises OSError before starting if the recording directory cannot be used.
+        """
+        if self.recorder is not None:
+            self.recorder.open()
+        if not any(self.config.vehicle.antenna_lever_arm_m):
+            log.warning("[vehicle] antenna_lever_arm_m is zero: the reference point is the antenna")
+        jobs = {f"can {link.spec}": self._run_bus(link) for link in self.links}
+        jobs |= {"gnss": self._run_gnss(), "core": self._run_core(), "tick": self._run_tick()}
+        jobs["health"] = self._run_health()
+        self._tasks = [asyncio.create_task(job, name=name) for name, job in jobs.items()]
+        stop = asyncio.create_task(self._stop.wait(), name="stop")
+        log.info("navgw running: %s", self.status_line())
+        self.notifier.ready(self.status_line())
+        try:
+            done, _ = await asyncio.wait([stop, *self._tasks], return_when=asyncio.FIRST_COMPLETED)
+        finally:
+            await self._shutdown([stop, *self._tasks])
+        died = [t for t in done if t is not stop]
+        for task in died:
+            exc = None if task.cancelled() else task.exception()
+            log.error("internal task %r ended: %r", task.get_name(), exc, exc_info=exc)
+        return 1 if died else 0
+
+    async def _shutdown(self, tasks: list[asyncio.Task[Any]]) -> None:
+        """Stop transmitting, stop the readers, close buses and recordings."""
+        self._stopping = True
+        self.notifier.stopping()
+        self.gnss.close()
+        for task in tasks:
+            task.cancel()
+        await asyncio.gather(*tasks, return_exceptions=True)
+        if self.recorder is not None:
+            self.recorder.close()
+        log.info("navgw stopped: %s", self.status_line())
+
+    def healthy(self) -> bool:
+        """The loop ticks, the core keeps up with its inbox, and no internal task has ended.
+
+        Missing devices do not make the service unhealthy (STATUS says what is missing):
+        restarting would not bring a receiver back.
+        """
+        now = time.monotonic()
+        return (
+            bool(self._tasks)
+            and not any(t.done() for t in self._tasks)
+            and now - self._heartbeat < HEARTBEAT_MAX_S
+            and (self.inbox.empty() or now - self._core_progress < HEARTBEAT_MAX_S)
+        )
+
+    # --- tasks ----------------------------------------------------------------------------
+
+    async def _run_bus(self, link: BusLink) -> None:
+        backoff = Backoff()
+        filters = (self._imu_filters if link.imu else []) + (claim_filters() if link.isobus else [])
+        reported = False
+        while True:
+            try:
+                bus = link.spec.open()
+            except (can.CanError, OSError) as exc:
+                if not reported:
+                    log.warning("CAN %s (%s) not available: %s; retrying, at most every %g s",
+                                link.spec, link.roles, exc, backoff.max_s)  # fmt: skip
+                    reported = True
+                link.waiting = f"waiting ({exc})"
+                await asyncio.sleep(backoff.next())
+                continue
+            reported = False
+            try:
+                with bus:
+                    async with FrameReader(bus, filters) as reader:
+                        link.bus, link.reader, link.waiting = bus, reader, None
+                        log.info("CAN %s open (%s)", link.spec, link.roles)
+                        backoff.reset()
+                        if link.isobus:
+                            self._send(self.core.start(self.timebase.now()))
+                        async for msg in reader:
+                            self._on_frame(link, msg)
+            except BusError as exc:
+                link.reopens += 1
+                link.waiting = f"reopening ({exc.__cause__ or exc})"
+                log.warning("CAN %s failed: %s; reopening", link.spec, exc)
+            finally:
+                if link.reader is not None:
+                    self.stats.can_frames_dropped += link.reader.dropped
+                link.bus = link.reader = None
+            await asyncio.sleep(backoff.next())
+
+    async def _run_gnss(self) -> None:
+        async for fix in self.gnss.fixes():
+            self.inbox.offer(fix)
+
+    async def _run_core(self) -> None:
+        while True:
+            item = await self.inbox.get()
+            self._core_progress = time.monotonic()
+            if isinstance(item, BusFrame):
+                self._send(self.core.on_bus_frame(item.msg, item.msg.timestamp))
+            elif isinstance(item, GnssFix) and item.t > self._imu_t:
+                self._held.append(item)  # until the IMU stream has reached its time
+            else:
+                if isinstance(item, ImuSample):
+                    self._release_fixes(item.t)
+                    self._imu_t = item.t
+                self._send(self.core.on_input(item))
+
+    def _release_fixes(self, before: float) -> None:
+        """Feed the held GNSS fixes older than ``before`` (service time) to the core.
+
+        The core gets its inputs in time order, as replay merges them: a fix read before the
+        IMU frames of the same instant have been through the loop waits for them (normally
+        less than one IMU period; at most HOLD_MAX_S while the IMU is silent).
+        """
+        while self._held and self._held[0].t < before:
+            self._send(self.core.on_input(self._held.popleft()))
+
+    async def _run_tick(self) -> None:
+        while True:
+            await asyncio.sleep(self.timebase.wall_s(TICK_S))
+            self._heartbeat = time.monotonic()
+            now = self.timebase.now()
+            if now - self._last_imu_t >= TICK_S:
+                self._send(self.core.poll(now))
+                self._release_fixes(now - HOLD_MAX_S)
+
+    async def _run_health(self) -> None:
+        watchdog_s = self.notifier.watchdog_interval_s
+        period = min(STATUS_INTERVAL_S, watchdog_s or math.inf)
+        next_status = time.monotonic() + STATUS_INTERVAL_S
+        claim, mode = self.core.claimer.state, self.core.solution().mode
+        mark = (self.timebase.now(), self.core.stats.imu_samples)
+        while True:
+            await asyncio.sleep(period)
+            if watchdog_s is not None and self.healthy():
+                self.notifier.watchdog()
+            if time.monotonic() >= next_status:
+                next_status += STATUS_INTERVAL_S
+                now, samples = self.timebase.now(), self.core.stats.imu_samples
+                self.stats.imu_rate_hz = (samples - mark[1]) / max(now - mark[0], 1e-9)
+                mark = (now, samples)
+                line = self.status_line()
+                self.notifier.status(line)
+                log.debug("status: %s", line)
+            if self.core.claimer.state is not claim:
+                claim = self.core.claimer.state
+                log.info("address claim %s: %s", claim.value, self._address_text())
+            if self.core.solution().mode is not mode:
+                mode = self.core.solution().mode
+                log.info("mode %s", mode.name.lower())
+
+    # --- frames in and out ----------------------------------------------------------------
+
+    def _on_frame(self, link: BusLink, msg: can.Message) -> None:
+        """Stamp a received frame with the service time and route it."""
+        msg.timestamp = self.timebase.at(self._host_time(msg))
+        if link.imu and msg.arbitration_id & PGN_SA_MASK in self._imu_ids:
+            self._last_imu_t = msg.timestamp
+            if self.recorder is not None:
+                self.recorder.can(msg)
+            for item in self.imu_decoder.feed(msg):
+                self.inbox.offer(item)
+        elif link.isobus and not self.echo.is_echo(msg, time.time()):
+            self.inbox.offer(BusFrame(msg))
+
+    def _host_time(self, msg: can.Message) -> float:
+        """The frame's arrival time; the host clock if the interface stamps another clock."""
+        now = time.time()
+        if abs(msg.timestamp - now) < CLOCK_MISMATCH_S:
+            return float(msg.timestamp)
+        if not self._clock_warned:
+            log.warning("CAN frame timestamps (%.3f) are not host time (%.3f): using the "
+                        "host clock at reception", msg.timestamp, now)  # fmt: skip
+            self._clock_warned = True
+        return now
+
+    def _send(self, frames: list[can.Message]) -> None:
+        """Send on the ISOBUS; failures are counted, logged at a limited rate, never fatal."""
+        if not frames:
+            return
+        link = self.isobus
+        bus = None if self._stopping else link.bus
+        for msg in frames:
+            if bus is None:
+                self.stats.frames_unsent += 1
+                continue
+            try:
+                bus.send(msg, timeout=0)
+            except (can.CanError, OSError) as exc:
+                self.stats.send_errors += 1
+                self._send_log.warning("send on CAN %s failed: %s (%d send errors in all)",
+                                       link.spec, exc, self.stats.send_errors)  # fmt: skip
+                if is_bus_down(exc) and link.reader is not None:
+                    link.reader.fail(exc)  # the CAN task reopens the bus
+                    bus = None
+            else:
+                self.stats.frames_sent += 1
+                self.echo.sent(msg, time.time())
+
+    # --- status ---------------------------------------------------------------------------
+
+    def _address_text(self) -> str:
+        claimer = self.core.claimer
+        address = f"0x{claimer.address:02X}" if claimer.address is not None else "none"
+        if claimer.state is ClaimState.CLAIMED:
+            return f"address {address}"
+        if claimer.state is ClaimState.FAILED:
+            return "no address free (cannot claim)"
+        return f"claiming {address}" if claimer.address is not None else "address not claimed"
+
+    def status_line(self) -> str:
+        """One line: mode, fix, IMU rate, GNSS, address, frames out, and what is missing."""
+        sol = self.core.solution()
+        fix = sol.fix_quality.name.lower().replace("_", " ") if sol.fix_quality else "none"
+        gnss = "GNSS connected" if self.gnss.connected else f"GNSS waiting for {self.gnss.port}"
+        parts = [
+            sol.mode.name.lower(),
+            f"fix {fix}",
+            f"IMU {self.stats.imu_rate_hz:.1f} Hz",
+            gnss,
+            self._address_text(),
+            f"{self.stats.frames_sent} frames out",
+        ]
+        parts += [f"CAN {link.spec} {link.waiting}" for link in self.links if link.waiting]
+        if self.inbox.overloads:
+            parts.append(f"{self.inbox.overloads} inputs dropped (overload)")
+        if self.stats.send_errors:
+            parts.append(f"{self.stats.send_errors} send errors")
+        return ", ".join(parts)
+
+
+async def serve(config: GatewayConfig, notifier: SdNotifier | None = None) -> int:
+    """Run the live service until SIGTERM or SIGINT; the exit status."""
+    service = GatewayService(config, notifier=notifier or SdNotifier())
+    loop = asyncio.get_running_loop()
+    for sig in (signal.SIGTERM, signal.SIGINT):
+        loop.add_signal_handler(sig, service.request_stop)
+    try:
+        return await service.run()
+    finally:
+        for sig in (signal.SIGTERM, signal.SIGINT):
+            loop.remove_signal_handler(sig)
