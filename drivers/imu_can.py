@@ -24,7 +24,7 @@ from collections.abc import AsyncIterator, Iterator
 from dataclasses import dataclass, field
 from enum import Enum, IntFlag
 from pathlib import Path
-from typing import Any, TextIO, cast
+from typing import Any, TextIO
 
 import can
 import numpy as np
@@ -32,6 +32,7 @@ import numpy.typing as npt
 from can.typechecking import CanFilter
 
 import dbc
+from dbc.fast_decode import LittleEndianDecoder
 from drivers.canbus import FrameReader
 from drivers.samples import ImuAux, ImuSample
 from sim_bus.canlog import CandumpReader, read_candump
@@ -226,7 +227,7 @@ class ImuDecoder:
         self.c_b_imu = c_b_imu_from_rpy_deg(self.config.mounting_rpy_deg)
         db = dbc.load(dbc.IMU_DBC)
         self._frames = {
-            i & PGN_SA_MASK: (f, db.get_message_by_name(f.value), i)
+            i & PGN_SA_MASK: (f, LittleEndianDecoder(db.get_message_by_name(f.value)), i)
             for f, i in self.config.ids.by_frame().items()
         }
         self._triads = {f: _Triad.from_dbc(db.get_message_by_name(f.value)) for f in _TRIADS}
@@ -266,7 +267,7 @@ class ImuDecoder:
                 f"{len(msg.data)} bytes)"
             )
             return self._malformed(t, what, f"an extended data frame of {length} bytes")
-        values = cast(dict[str, Any], definition.decode(bytes(msg.data), decode_choices=False))
+        values = definition.decode(bytes(msg.data))
         if frame is ImuFrame.AUX:
             return [self._aux(t, values)]
         reserved = int(values["RESERVED"])
