@@ -21,7 +21,13 @@ from dataclasses import replace
 import numpy as np
 
 from drivers.samples import FixQuality, GnssFix, ImuSample
-from gateway.attitude import dcm_from_rpy, roll_pitch_from_specific_force, rpy_from_dcm, wrap_pi
+from gateway.attitude import (
+    dcm_from_rpy,
+    exp_so3,
+    roll_pitch_from_specific_force,
+    rpy_from_dcm,
+    wrap_pi,
+)
 from gateway.estimator_config import GRAVITY_MPS2, ObserverConfig
 from gateway.geodesy import lla_to_ned, ned_to_lla
 from gateway.heading import DEG, HeadingChannel
@@ -35,9 +41,14 @@ HISTORY_LEN = 1024
 ALIGN_TIMEOUT_S = 10.0
 #: Time constant of the running estimate of the tilt-residual noise (roll/pitch sigma).
 E_NOISE_TAU_S = 10.0
-#: Body rate for the lever-arm velocity: mean over this long before the epoch (gyro noise
-#: of an ADIS16334 is ~0.6 deg/s per sample, 3 cm/s on a 3 m mast; 25 ms of lag).
-LEVER_RATE_WINDOW_S = 0.05
+#: Body rate for the lever-arm velocity: mean over this long, centred on the epoch (the
+#: history already holds the samples after it, the receiver being ~70 ms late). One ADIS16334
+#: sample is ~0.5 deg/s noisy (ARW 2 deg/rt-h at 204.8 Hz), 2.5 cm/s on a 3 m mast; 0.1 s
+#: averages that to 0.8 cm/s, and centring removes the lag that a trailing window has (bumps
+#: rock the mast at 0.3-1 Hz, 0.3 m/s at its top: 25 ms of lag cost 5 cm/s).
+LEVER_RATE_WINDOW_S = 0.1
+#: Rate of turn output: mean body rate over this long before the last sample.
+OUTPUT_RATE_WINDOW_S = 0.05
 #: Body rate for the stationarity test: mean over this long before the epoch.
 STATIONARY_RATE_WINDOW_S = 0.2
 #: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
@@ -84,6 +95,7 @@ class ObserverEngine:
         self._t_vel_rx_s: float | None = None  # receive time of the last usable velocity
         self._prev_epoch: tuple[float, float, float, _Row] | None = None  # t, vN, vE at IMU
         self._stationary = False
+        self._zero_rate_start: _Row | None = None  # history row where the rest window began
         self._coasting = False  # GNSS velocity timed out: platform open loop
         # learning gates and convergence bookkeeping
         self._learn_ok_since_s: float | None = None
@@ -228,13 +240,16 @@ class ObserverEngine:
         if vel is None or row is None:
             self._prev_epoch = None
             self._update_gates(t_e, ok=False)
-            self._correct_position(fix, t_e, row, c_bn, None)
+            c_e = c_bn if row is None else self._attitude_at(row, c_bn)
+            self._correct_position(fix, t_e, row, c_e, None)
             return
         v_ant = (vel[0], vel[1], 0.0)
-        w_lever = self._mean_rate(t_e - LEVER_RATE_WINDOW_S, row)
+        half = 0.5 * LEVER_RATE_WINDOW_S
+        w_lever = self._mean_rate(t_e - half, self._history_at(t_e + half) or row)
         w_still = self._mean_rate(t_e - STATIONARY_RATE_WINDOW_S, row)
-        v_ref = velocity_at(v_ant, c_bn, w_lever, self._l_ant_b, np.zeros(3))
-        v_imu = velocity_at(v_ant, c_bn, w_lever, self._l_ant_b, self._l_imu_b)
+        c_e = self._attitude_at(row, c_bn)
+        v_ref = velocity_at(v_ant, c_e, w_lever, self._l_ant_b, np.zeros(3))
+        v_imu = velocity_at(v_ant, c_e, w_lever, self._l_ant_b, self._l_imu_b)
         speed_ref = math.hypot(v_ref[0], v_ref[1])
         self._t_vel_rx_s = fix.t
         self._coasting = False
@@ -243,21 +258,43 @@ class ObserverEngine:
             and float(np.linalg.norm(w_still)) < self.cfg.stationary_rate_dps * DEG
         )
         glitch = self._correct_tilt(t_e, float(v_imu[0]), float(v_imu[1]), row)
+        # Learning goes on at rest: the tilt loop is closed there too (v = 0 is the best
+        # velocity reference there is), the control rate still equals the x/y gyro bias
+        # (eq. 15), and eq. (12) moves no accelerometer bias without a yaw rate. Freezing it
+        # let the tilt settle at b_g tau during every stop, then an 8 s hold-off after it.
         self._update_gates(
             t_e,
             ok=(
                 int(fix.quality) in self.cfg.learning_fix_qualities
                 and not glitch
-                and not self._stationary
-                and self._heading_aligned
+                and (self._heading_aligned or self._stationary)
                 and not self._imu_upset
             ),
         )
+        self._zero_rate_update(t_e, row)
         self._imu_upset = False
         cog_ref = math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
         yaw_rate = float(c_bn[2] @ w_still)
         self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn)
-        self._correct_position(fix, t_e, row, c_bn, (float(v_ref[0]), float(v_ref[1])))
+        self._correct_position(fix, t_e, row, c_e, (float(v_ref[0]), float(v_ref[1])))
+
+    def _zero_rate_update(self, t_e: float, row: _Row) -> None:
+        """At rest, every ``gyro_z_window_s`` the mean body z rate is the residual z-gyro bias
+        (heading channel KF): a 20 s stop pins it to ARW / sqrt(20 s) = 0.007 deg/s, where
+        course-over-ground heading could not observe it at all."""
+        if not (self._stationary and self.cfg.estimate_biases) or self._imu_upset:
+            self._zero_rate_start = None
+            return
+        start = self._zero_rate_start
+        if start is None or t_e - start[0] < self.cfg.gyro_z_window_s:
+            if start is None:
+                self._zero_rate_start = row
+            return
+        window_s = t_e - start[0]
+        self._heading.observe_zero_rate(t_e, (row[8] - start[8]) / window_s, window_s)
+        assert self._observer is not None
+        self._observer.set_gyro_bias_z(self._heading.bg_z_rps)
+        self._zero_rate_start = row
 
     def _velocity_ne(self, fix: GnssFix) -> tuple[float, float] | None:
         """Horizontal antenna velocity; a receiver that has never moved gives SOG only.
@@ -296,6 +333,13 @@ class ObserverEngine:
         )
         return (t_s, sf_n, sf_e, sf_d, psi, hc, wx, wy, wz)
 
+    def _attitude_at(self, row: _Row, c_bn: np.ndarray) -> np.ndarray:
+        """C_b^n at the time of ``row``: the current C turned back by the body rotation since
+        (integral of w_b from the history; the platform control rate is negligible over the
+        ~0.1 s of receiver latency). A bump rolls the mast by ~0.5 deg in 70 ms."""
+        last = self._hist[-1]
+        return c_bn @ exp_so3((row[6] - last[6], row[7] - last[7], row[8] - last[8]))
+
     def _mean_rate(self, t0_s: float, row: _Row) -> np.ndarray:
         """Mean bias-corrected body rate (3,) over [t0_s, row time], from the history."""
         row0 = self._history_at(t0_s)
@@ -312,28 +356,40 @@ class ObserverEngine:
         heading is known the horizontal f_p is in an arbitrary azimuth, so the loop is closed
         only while stationary. |e| > ``e_gate_mps2`` is a glitch: the loop stays open for the
         interval (no attitude kick) and learning is gated (hold-off after it).
+
+        A rejected epoch is skipped, not made the base of the next difference: the next e
+        spans the last accepted epoch to it, and its control rate, held for one epoch period,
+        is scaled by interval / period, and the gate applies to the scaled e (a velocity
+        error of ``e_gate_mps2`` x period however long the span: a velocity step is rejected
+        until the span exceeds ``max_gnss_interval_s`` and a new base starts after it). So the
+        applied tilt corrections still telescope to
+        (v_last - v_first) / (g tau), one velocity error, however many epochs are rejected.
+        Differencing against a rejected epoch instead made noisy spells (single-point GNSS,
+        8 cm/s: e ~1.1 m/s^2 against the 1.5 m/s^2 gate) a random walk of 1-2 deg in tilt.
         """
         obs = self._observer
         assert obs is not None
         prev = self._prev_epoch
-        self._prev_epoch = (t_e, v_imu_n, v_imu_e, row)
-        if prev is None:
-            self._set_tilt_open()
-            return False
-        interval_s = t_e - prev[0]
-        if not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
+        current = (t_e, v_imu_n, v_imu_e, row)
+        interval_s = 0.0 if prev is None else t_e - prev[0]
+        if prev is None or not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
+            self._prev_epoch = current
             self._set_tilt_open()
             return False
         prow = prev[3]
         e_n = (v_imu_n - prev[1]) / interval_s - (row[1] - prow[1]) / interval_s
         e_e = (v_imu_e - prev[2]) / interval_s - (row[2] - prow[2]) / interval_s
-        if math.hypot(e_n, e_e) > self.cfg.e_gate_mps2:
+        last = self._t_last_epoch_s
+        period_s = interval_s if last is None else min(interval_s, max(t_e - last, 1e-3))
+        scale = interval_s / period_s
+        if math.hypot(e_n, e_e) * scale > self.cfg.e_gate_mps2:
             self._set_tilt_open()
             return True
+        self._prev_epoch = current
         if not self._heading_aligned and not self._stationary:
             self._set_tilt_open()
             return False
-        obs.correct_tilt(e_n, e_e)
+        obs.correct_tilt(e_n * scale, e_e * scale)
         self._epoch_interval_s = interval_s
         a = min(1.0, interval_s / E_NOISE_TAU_S)
         self._e_var_mps4 += a * (0.5 * (e_n * e_n + e_e * e_e) - self._e_var_mps4)
@@ -396,15 +452,15 @@ class ObserverEngine:
         assert obs is not None
         if not self._heading_aligned:
             if hdt_rad is not None:
-                target = hdt_rad
+                target, sigma = hdt_rad, self.cfg.hdt_sigma_deg * DEG
             elif speed_ref_mps >= self.cfg.align_min_speed_mps:
-                target = cog_ref_rad
+                target, sigma = cog_ref_rad, self.cfg.gnss_vel_sigma_mps / speed_ref_mps
             else:
                 return
             # yaw at t_e is psi_e; move it onto the reference, keep the gyro motion since t_e
             obs.rotate_about_vertical(wrap_pi(target - row[4]))
             self._heading_aligned = True
-            self._heading.reset_interval()
+            self._heading.aligned(sigma)
             return
         ref = self._heading.select_reference(
             t_e, row[4], cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
@@ -412,7 +468,6 @@ class ObserverEngine:
         corr = self._heading.correct(t_e, row[4], ref, row[5], float(c_bn[2, 2]), obs.learn)
         if corr.step_rad:
             obs.rotate_about_vertical(corr.step_rad)
-            self._heading.reset_interval()
         self._w_pz_rps = corr.w_pz_rps
         obs.set_heading_rate(corr.w_pz_rps)
         obs.set_gyro_bias_z(self._heading.bg_z_rps)
@@ -540,11 +595,11 @@ class ObserverEngine:
 
     def _yaw_rate_rps(self, c_bn: np.ndarray) -> float | None:
         """Rate of turn about the NED vertical, (C w_b)[2], w_b averaged over the last
-        ``LEVER_RATE_WINDOW_S`` (a single ADIS16334 sample is 0.6 deg/s noisy)."""
+        ``OUTPUT_RATE_WINDOW_S`` (a single ADIS16334 sample is 0.5 deg/s noisy)."""
         if not self._hist:
             return None
         last = self._hist[-1]
-        return float(c_bn[2] @ self._mean_rate(last[0] - LEVER_RATE_WINDOW_S, last))
+        return float(c_bn[2] @ self._mean_rate(last[0] - OUTPUT_RATE_WINDOW_S, last))
 
     def _coasting_s(self) -> float:
         """Time since usable GNSS velocity stopped, 0 while it flows (receive-time clock)."""
@@ -572,13 +627,18 @@ class ObserverEngine:
         return Mode.NAVIGATING
 
     def _sigma_tilt_rad(self, coasting_s: float) -> float:
-        """Roll/pitch 1-sigma from the observer's physics (seed 000, eqs. 8, 10).
+        """Roll/pitch 1-sigma from the observer's physics (seed 000, eqs. 3, 8, 10).
 
-        Sum of squares of: GNSS-derived noise in e low-passed by the tilt loop,
-        sqrt(var_e T / (2 tau)) / g; residual gyro bias times tau (steady tilt b_g tau, eq. 10)
-        and accelerometer bias over g (eq. 8), each decaying from its initial 1-sigma with the
-        learning exponent down to the paper's residual level; plus open-loop drift b_g t
-        while coasting.
+        Sum of squares of:
+        - gyro angular random walk through the tilt loop (first order, tau): ARW sqrt(tau / 2);
+        - GNSS velocity noise: e is a velocity *difference* over T, so its integral telescopes
+          and the tilt sees one velocity error, not a random walk: sigma_v / (g tau), with
+          sigma_v^2 = var(e) T^2 / 2 from the running variance of e (white velocity noise
+          differenced at 10 Hz is 0.28 m/s^2 on e but only 0.03 deg of tilt);
+        - residual gyro bias times tau (steady tilt b_g tau, eq. 10) and accelerometer bias
+          over g (eq. 8), each decaying from its initial 1-sigma with the learning exponent
+          down to the paper's residual level;
+        - open-loop drift b_g t while coasting.
         """
         cfg = self.cfg
         g = GRAVITY_MPS2
@@ -586,9 +646,11 @@ class ObserverEngine:
             cfg.gyro_bias_sigma0_dps * DEG * math.exp(-self._g_learn), GYRO_BIAS_FLOOR_RPS
         )
         sigma_ba = max(cfg.accel_bias_sigma0_mps2 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2)
-        noise = math.sqrt(self._e_var_mps4 * self._epoch_interval_s / (2.0 * cfg.tau_s)) / g
+        arw = cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
         return math.sqrt(
-            noise**2
+            arw**2 * cfg.tau_s / 2.0
+            + (sigma_v / (g * cfg.tau_s)) ** 2
             + (sigma_bg * cfg.tau_s) ** 2
             + (sigma_ba / g) ** 2
             + (sigma_bg * coasting_s) ** 2

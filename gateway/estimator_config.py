@@ -36,6 +36,9 @@ class ObserverConfig:
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
     gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma (RTK carrier-phase Doppler)
 
+    # --- IMU noise (ADIS16334 datasheet): roll/pitch sigma, heading gain, bias at rest ---
+    gyro_arw_dps_per_sqrt_h: float = 2.0  # gyro angular random walk
+
     # --- learning gates ---
     learning_fix_qualities: tuple[int, ...] = (2, 4, 5)  # GGA DGNSS, RTK fixed, RTK float
     navigating_fix_qualities: tuple[int, ...] = (4,)  # other usable qualities: DEGRADED
@@ -50,7 +53,7 @@ class ObserverConfig:
     align_min_speed_mps: float = 1.5  # first course over ground used at this speed
 
     # --- heading channel (ALGORITHMS.md 2, seed 001) ---
-    tau_heading_s: float = 2.0  # heading correction time constant
+    tau_heading_s: float = 2.0  # shortest heading time constant (caps the heading KF gain)
     cog_min_speed_mps: float = 1.0  # course over ground is a heading reference above this
     reverse_detect_speed_mps: float = 0.3  # forward/reverse decided above this speed
     heading_gate_deg: float = 10.0  # larger heading residuals are rejected (glitch)

@@ -6,11 +6,21 @@ reference point (lever-arm corrected) at speed, or a configured AB-line bearing 
 along it. Reversing (course about 180 deg from heading) is detected with hysteresis and then the
 reversed course is the reference, so there is no 180 deg jump and no backwards pull.
 
-The correction is a vertical control rate w_pz = r / tau_heading, r = psi_hat - psi_ref, applied
-to the DCM by the observer. The z-gyro bias follows seed 001: the heading drift the gyro would
-have had without correction over an interval T, (r1 - r0 + integral of w_pz) / T, is an
-observation of the residual bias (about the vertical; divided by C[2,2] for the body z axis)
-and feeds a scalar Kalman filter with F = 1, H = 1, small process noise.
+The correction is a vertical control rate w_pz = K r / T, r = psi_hat - psi_ref, applied to
+the DCM by the observer over the next interval T. K is the gain of a scalar Kalman filter of
+the heading error: its variance grows with the gyro's ARW (ARW^2 T) and the z-bias
+uncertainty ((sigma_bz gap)^2), and each reference shrinks it by its sigma (COG: sigma_v /
+speed, so 0.4 deg at 3 m/s and 1.1 deg at 1 m/s). In steady state this is a time constant
+sigma_ref sqrt(T) / ARW (COG at 3 m/s: 3.6 s, at 1 m/s: 11 s) instead of a fixed 2 s that let
+the COG noise of low speed straight into the heading; after alignment or a long gap it is
+fast. K never exceeds T / ``tau_heading_s`` (the rate is applied one epoch late).
+
+The z-gyro bias follows seed 001: the heading drift the gyro would have had without
+correction over an interval T, (r1 - r0 + integral of w_pz) / T, is an observation of the
+residual bias (about the vertical; divided by C[2,2] for the body z axis) and feeds a scalar
+Kalman filter with F = 1, H = 1, small process noise. At rest the mean bias-corrected z rate
+over a window is a direct observation of the residual bias (zero-rate update,
+:meth:`HeadingChannel.observe_zero_rate`), with variance ARW^2 / T.
 """
 
 from __future__ import annotations
@@ -103,6 +113,8 @@ class HeadingChannel:
         self._window: _BiasWindow | None = None
         self._ab_dwell_since_s: float | None = None
         self._rejected_since_s: float | None = None
+        self._t_last_s: float | None = None  # previous correction epoch
+        self._p_psi_rad2 = math.pi**2  # heading error variance (unknown until aligned)
 
     # ------------------------------------------------------------------ reference choice
 
@@ -189,6 +201,9 @@ class HeadingChannel:
         correction applied up to ``t_s`` (integral of w_pz), ``c22`` = C[2, 2] (body z vs
         vertical). ``learn`` False (gates closed) restarts the bias interval.
         """
+        interval_s = 0.0 if self._t_last_s is None else t_s - self._t_last_s
+        self._t_last_s = t_s
+        self._predict_heading_variance(interval_s)
         if ref is None:
             self._window = None
             self._rejected_since_s = None
@@ -200,6 +215,7 @@ class HeadingChannel:
                 self._rejected_since_s = t_s
             if t_s - self._rejected_since_s >= self.cfg.heading_realign_s:
                 self._rejected_since_s = None
+                self.aligned(ref.sigma_rad)
                 return HeadingCorrection(step_rad=-r)
             return HeadingCorrection()
         self._rejected_since_s = None
@@ -207,7 +223,35 @@ class HeadingChannel:
             self._observe_bias(t_s, r, hc_rad, ref, c22)
         else:
             self._window = None
-        return HeadingCorrection(w_pz_rps=r / self.cfg.tau_heading_s)
+        if not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
+            return HeadingCorrection(w_pz_rps=r / self.cfg.tau_heading_s)
+        return HeadingCorrection(w_pz_rps=r * self._gain(ref.sigma_rad, interval_s) / interval_s)
+
+    def _gain(self, sigma_ref_rad: float, interval_s: float) -> float:
+        """Kalman gain of one heading reference (module docstring); updates the variance."""
+        k_max = interval_s / self.cfg.tau_heading_s
+        k = min(self._p_psi_rad2 / (self._p_psi_rad2 + sigma_ref_rad**2), k_max)
+        self._p_psi_rad2 *= 1.0 - k
+        return k
+
+    def _predict_heading_variance(self, gap_s: float) -> None:
+        """Heading error variance grows by ARW^2 gap + (sigma_bz gap)^2 without a reference."""
+        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        self._p_psi_rad2 += arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
+
+    def aligned(self, sigma_rad: float) -> None:
+        """Heading was just set directly (alignment, realignment) to a reference of
+        ``sigma_rad``: restart the bias interval and the heading variance."""
+        self._window = None
+        self._p_psi_rad2 = sigma_rad**2
+
+    def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> None:
+        """Zero-rate update at rest: the mean bias-corrected body z rate over ``window_s``
+        is the residual z bias, variance ARW^2 / window (engine vibration averages out)."""
+        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
+        self.kf.update(mean_w_z_rps, arw**2 / window_s)
+        self._t_kf_s = t_s
 
     def _observe_bias(
         self, t_s: float, r_rad: float, hc_rad: float, ref: HeadingReference, c22: float
@@ -227,10 +271,6 @@ class HeadingChannel:
         self.kf.update(drift_rps / c22, r_rps2)
         self._t_kf_s = t_s
         self._window = _BiasWindow(t_s, r_rad, hc_rad, ref.sigma_rad, ref.source)
-
-    def reset_interval(self) -> None:
-        """Forget the current bias interval (after a direct yaw step, e.g. alignment)."""
-        self._window = None
 
     @property
     def bg_z_rps(self) -> float:
