@@ -62,7 +62,7 @@ from gateway.ekf import (
 )
 from gateway.ekf_config import DEFAULT_GNSS_SIGMAS, DEG, EkfConfig, EkfTuning
 from gateway.estimator_config import GRAVITY_MPS2
-from gateway.geodesy import lla_to_ned, ned_to_lla
+from gateway.geodesy import LocalFrame
 from gateway.solution import Convergence, Mode, Solution
 
 Array = npt.NDArray[np.float64]
@@ -154,7 +154,7 @@ class EkfEngine:
         self._p: Array | None = None  # error covariance (15, 15); None until heading is known
         self._hist: _History | None = None
         self._pending: deque[tuple[float, GnssFix]] = deque(maxlen=16)
-        self._origin_lla: Array | None = None
+        self._frame: LocalFrame | None = None  # local NED around the first position used
         self._t_s: float | None = None
         # alignment: mean specific force and rate over the current quiet window
         self._align_first_s: float | None = None
@@ -467,10 +467,10 @@ class EkfEngine:
 
     def _antenna_ned(self, fix: GnssFix) -> Array:
         """Antenna position in the local NED frame (origin: the first position used)."""
-        lla = np.array([fix.lat_deg, fix.lon_deg, fix.alt_m], dtype=float)
-        if self._origin_lla is None:
-            self._origin_lla = lla
-        return lla_to_ned(lla, self._origin_lla)
+        assert fix.lat_deg is not None and fix.lon_deg is not None and fix.alt_m is not None
+        if self._frame is None:
+            self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
+        return np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
 
     def _position_sigma(self, fix: GnssFix) -> Array | None:
         """Position 1-sigma NED (3,): GST when sent, else the quality's default; scaled."""
@@ -524,7 +524,7 @@ class EkfEngine:
     @property
     def origin_lla(self) -> Array | None:
         """Origin (lat deg, lon deg, height m) of the local NED frame, None before a fix."""
-        return self._origin_lla
+        return self._frame.origin_lla if self._frame is not None else None
 
     def bias_sigma(self) -> tuple[Array, Array] | None:
         """1-sigma of the gyro (rad/s) and accelerometer (m/s^2) bias estimates, (3,) each."""
@@ -587,8 +587,8 @@ class EkfEngine:
         nav = self.reference_state()
         lat = lon = alt = None
         vel = None
-        if nav is not None and self._origin_lla is not None and coasting_s <= self.cfg.max_coast_s:
-            lat, lon, alt = (float(x) for x in ned_to_lla(nav[0], self._origin_lla))
+        if nav is not None and self._frame is not None and coasting_s <= self.cfg.max_coast_s:
+            lat, lon, alt = self._frame.to_lla(*(float(x) for x in nav[0]))
             vel = (float(nav[1][0]), float(nav[1][1]), float(nav[1][2]))
         sig = self.bias_sigma()
         p = self._p

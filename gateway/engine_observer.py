@@ -29,7 +29,7 @@ from gateway.attitude import (
     wrap_pi,
 )
 from gateway.estimator_config import GRAVITY_MPS2, ObserverConfig
-from gateway.geodesy import lla_to_ned, ned_to_lla
+from gateway.geodesy import LocalFrame
 from gateway.heading import DEG, HeadingChannel
 from gateway.observer import TereshkovObserver
 from gateway.solution import Convergence, Mode, Solution
@@ -88,7 +88,7 @@ class ObserverEngine:
         self._p_ned_m = [0.0, 0.0, 0.0]
         self._v_ned_mps = [0.0, 0.0, 0.0]
         self._nav_valid = False
-        self._origin_lla: np.ndarray | None = None
+        self._frame: LocalFrame | None = None  # local NED around the first fix
         self._t_pos_epoch_s: float | None = None
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
@@ -490,10 +490,10 @@ class ObserverEngine:
         """
         if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or self._t_s is None:
             return
-        lla = np.array([fix.lat_deg, fix.lon_deg, fix.alt_m])
-        if self._origin_lla is None:
-            self._origin_lla = lla
-        p_ref = reference_from_antenna(lla_to_ned(lla, self._origin_lla), c_bn, self._l_ant_b)
+        if self._frame is None:
+            self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
+        p_ant = np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
+        p_ref = reference_from_antenna(p_ant, c_bn, self._l_ant_b)
         p, v, sf = self._p_ned_m, self._v_ned_mps, self._sf
         if not self._nav_valid or row is None:
             if row is None:
@@ -564,8 +564,8 @@ class ObserverEngine:
         )
         lat = lon = alt = None
         vel = None
-        if self._nav_valid and self._origin_lla is not None and coasting_s <= self.cfg.max_coast_s:
-            lat, lon, alt = (float(x) for x in ned_to_lla(self._p_ned_m, self._origin_lla))
+        if self._nav_valid and self._frame is not None and coasting_s <= self.cfg.max_coast_s:
+            lat, lon, alt = self._frame.to_lla(*self._p_ned_m)
             vel = (self._v_ned_mps[0], self._v_ned_mps[1], self._v_ned_mps[2])
         k = self.cfg.converged_time_constants
         return replace(

@@ -3,7 +3,15 @@
 import numpy as np
 from numpy.testing import assert_allclose
 
-from gateway.geodesy import A_M, E2, ecef_to_lla, lla_to_ecef, lla_to_ned, ned_to_lla
+from gateway.geodesy import (
+    A_M,
+    E2,
+    LocalFrame,
+    ecef_to_lla,
+    lla_to_ecef,
+    lla_to_ned,
+    ned_to_lla,
+)
 
 ORIGIN = np.array([52.2, 10.5, 80.0])
 
@@ -27,3 +35,13 @@ def test_one_arcsecond_north_matches_meridian_radius() -> None:
     assert_allclose(ned[0], (m_radius + ORIGIN[2]) * np.radians(1 / 3600), rtol=1e-6)
     assert abs(ned[1]) < 1e-9
     assert abs(ned[2]) < 1e-3  # earth curvature over 31 m: 0.07 mm
+
+
+def test_local_frame_scalar_path_equals_the_array_path() -> None:
+    frame = LocalFrame(ORIGIN)
+    rng = np.random.default_rng(2)
+    for ned in rng.uniform(-5000.0, 5000.0, size=(50, 3)) * [1, 1, 0.02]:
+        lla = ned_to_lla(ned, ORIGIN)
+        assert_allclose(frame.to_lla(*ned)[:2], lla[:2], rtol=0, atol=1e-12)  # deg
+        assert abs(frame.to_lla(*ned)[2] - lla[2]) < 1e-6  # m
+        assert_allclose(frame.to_ned(*lla), ned, rtol=0, atol=1e-6)
