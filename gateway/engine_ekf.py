@@ -63,7 +63,7 @@ from gateway.ekf import (
 from gateway.ekf_config import DEFAULT_GNSS_SIGMAS, DEG, EkfConfig, EkfTuning
 from gateway.estimator_config import GRAVITY_MPS2
 from gateway.geodesy import LocalFrame
-from gateway.solution import Convergence, Mode, Solution
+from gateway.solution import Convergence, Mode, Solution, navigation_mode
 
 Array = npt.NDArray[np.float64]
 
@@ -630,19 +630,12 @@ class EkfEngine:
         return gap if gap > self.cfg.gnss_timeout_s else 0.0
 
     def _mode(self, coasting_s: float) -> Mode:
-        if self._bad_since_s is not None and (
-            self._t_s is None or self._t_s - self._bad_since_s >= self.cfg.imu_alarm_fault_s
-        ):
-            return Mode.FAULT
-        if self._p is None:
-            return Mode.ALIGNING
-        if coasting_s > 0.0:
-            return Mode.COASTING
-        fix = self._last_fix
-        if (
-            self._imu_alarm
-            or fix is None
-            or int(fix.quality) not in self.cfg.navigating_fix_qualities
-        ):
-            return Mode.DEGRADED
-        return Mode.NAVIGATING
+        return navigation_mode(
+            fault=self._bad_since_s is not None
+            and (self._t_s is None or self._t_s - self._bad_since_s >= self.cfg.imu_alarm_fault_s),
+            aligned=self._p is not None,
+            coasting=coasting_s > 0.0,
+            imu_alarm=self._imu_alarm,
+            fix=self._last_fix,
+            navigating_fix_qualities=self.cfg.navigating_fix_qualities,
+        )

@@ -32,7 +32,7 @@ from gateway.estimator_config import GRAVITY_MPS2, ObserverConfig
 from gateway.geodesy import LocalFrame
 from gateway.heading import DEG, HeadingChannel
 from gateway.observer import TereshkovObserver
-from gateway.solution import Convergence, Mode, Solution
+from gateway.solution import Convergence, Mode, Solution, navigation_mode
 from gateway.terrain import reference_from_antenna, velocity_at
 
 #: History kept for late GNSS epochs, samples (5 s at 204.8 Hz): latency + one interval.
@@ -608,23 +608,14 @@ class ObserverEngine:
         return max(0.0, self._t_s - self._t_vel_rx_s)
 
     def _mode(self, coasting_s: float) -> Mode:
-        """FAULT (IMU data unusable), ALIGNING (no heading yet), COASTING (GNSS velocity
-        timed out), DEGRADED (IMU alarm, or fix quality not in ``navigating_fix_qualities``),
-        else NAVIGATING."""
-        if self._bad_for_s >= self.cfg.imu_fault_s:
-            return Mode.FAULT
-        if not self._heading_aligned:
-            return Mode.ALIGNING
-        if coasting_s > 0.0:
-            return Mode.COASTING
-        fix = self._last_fix
-        if (
-            self._imu_alarm
-            or fix is None
-            or int(fix.quality) not in self.cfg.navigating_fix_qualities
-        ):
-            return Mode.DEGRADED
-        return Mode.NAVIGATING
+        return navigation_mode(
+            fault=self._bad_for_s >= self.cfg.imu_fault_s,
+            aligned=self._heading_aligned,
+            coasting=coasting_s > 0.0,
+            imu_alarm=self._imu_alarm,
+            fix=self._last_fix,
+            navigating_fix_qualities=self.cfg.navigating_fix_qualities,
+        )
 
     def _sigma_tilt_rad(self, coasting_s: float) -> float:
         """Roll/pitch 1-sigma from the observer's physics (seed 000, eqs. 3, 8, 10).

@@ -27,7 +27,6 @@ import threading
 import time
 from collections.abc import Callable, Iterable, Iterator
 from pathlib import Path
-from types import TracebackType
 from typing import TypeVar
 
 import can
@@ -35,6 +34,7 @@ import can
 from gateway.timebase import TimeBase
 from sim_bus.can_player import play
 from sim_bus.canlog import read_candump
+from sim_bus.closing import Closing
 from sim_bus.nmea_player import NmeaPlayer
 from sim_bus.nmealog import read_nmea_log
 
@@ -61,7 +61,7 @@ def paced(
         yield item
 
 
-class SyncedPlayback:
+class SyncedPlayback(Closing):
     """Both logs of one run, ``speed`` x real time, the first ``duration_s`` of them.
 
     ``open()`` creates the pty (:attr:`device`, the serial port to configure);
@@ -144,14 +144,6 @@ class SyncedPlayback:
     def __enter__(self) -> SyncedPlayback:
         self.open()
         return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
     def _play_can(self) -> None:
         frames = itertools.takewhile(lambda m: m.timestamp < self.t_end, read_candump(self.can_log))

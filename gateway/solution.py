@@ -78,6 +78,29 @@ class Solution:
         return float(np.arctan2(ve, vn) % (2 * np.pi)), float(np.hypot(vn, ve))
 
 
+def navigation_mode(
+    *,
+    fault: bool,
+    aligned: bool,
+    coasting: bool,
+    imu_alarm: bool,
+    fix: GnssFix | None,
+    navigating_fix_qualities: tuple[int, ...],
+) -> Mode:
+    """The mode every engine reports, in order of precedence: FAULT (IMU data unusable),
+    ALIGNING (no attitude/heading yet), COASTING (GNSS velocity timed out), DEGRADED (IMU
+    alarm, or a fix quality outside ``navigating_fix_qualities``), else NAVIGATING."""
+    if fault:
+        return Mode.FAULT
+    if not aligned:
+        return Mode.ALIGNING
+    if coasting:
+        return Mode.COASTING
+    if imu_alarm or fix is None or int(fix.quality) not in navigating_fix_qualities:
+        return Mode.DEGRADED
+    return Mode.NAVIGATING
+
+
 class Estimator(Protocol):
     """What the fusion loop needs from an engine: feed samples, read the solution."""
 

@@ -15,12 +15,12 @@ import logging
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 from typing import TextIO
 
 import can
 
 from drivers.errors import InputError
+from sim_bus.closing import Closing
 
 log = logging.getLogger(__name__)
 
@@ -60,7 +60,7 @@ def format_candump_line(msg: can.Message, channel: str | int | None = None) -> s
     return f"({msg.timestamp:f}) {ch} {can_id}#{fd}{msg.data.hex().upper()}"
 
 
-class CandumpWriter:
+class CandumpWriter(Closing):
     """Writes messages as candump ``-L`` lines (without R/T); a context manager."""
 
     def __init__(self, path: str | Path, channel: str = "can0") -> None:
@@ -87,16 +87,6 @@ class CandumpWriter:
         if not self._file.closed:
             self._file.close()
 
-    def __enter__(self) -> CandumpWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def write_candump(path: str | Path, messages: Iterable[can.Message], channel: str = "can0") -> int:

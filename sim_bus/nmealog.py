@@ -18,10 +18,10 @@ import os
 import re
 from collections.abc import Iterable, Iterator
 from pathlib import Path
-from types import TracebackType
 from typing import IO, TextIO
 
 from drivers.errors import InputError
+from sim_bus.closing import Closing
 
 log = logging.getLogger(__name__)
 
@@ -61,7 +61,7 @@ def parse_nmea_log_line(line: str, where: str = "<line>") -> tuple[float | None,
     return float(stamp), sentence
 
 
-class NmeaLogReader(Iterator[tuple[float | None, str]]):
+class NmeaLogReader(Closing, Iterator[tuple[float | None, str]]):
     """Iterates (host time, sentence) over a log; skips blank and malformed lines.
 
     ``bad_lines`` counts the lines skipped for a malformed prefix. A path is opened (and closed
@@ -120,16 +120,6 @@ class NmeaLogReader(Iterator[tuple[float | None, str]]):
             self._own.close()
             self._own = None
 
-    def __enter__(self) -> NmeaLogReader:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def read_nmea_log(
@@ -139,7 +129,7 @@ def read_nmea_log(
     return NmeaLogReader(source, max_reports)
 
 
-class NmeaLogWriter:
+class NmeaLogWriter(Closing):
     """Writes log lines to a path (created, closed by :meth:`close`) or a caller's text stream."""
 
     def __init__(self, target: str | os.PathLike[str] | TextIO) -> None:
@@ -161,16 +151,6 @@ class NmeaLogWriter:
             self._own.close()
             self._own = None
 
-    def __enter__(self) -> NmeaLogWriter:
-        return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.close()
 
 
 def write_nmea_log(
