@@ -191,7 +191,8 @@ class RunSetup:
         return replace(cfg, **overrides)  # type: ignore[arg-type]
 
 
-def _ekf(setup: RunSetup) -> Estimator:
+def _ekf(setup: RunSetup, covariance_period_s: float = 0.05) -> Estimator:
+    """The EKF; ``covariance_period_s`` 0 propagates the covariance at every IMU sample."""
     from gateway.ekf_config import EkfConfig
     from gateway.engine_ekf import EkfEngine
 
@@ -200,6 +201,7 @@ def _ekf(setup: RunSetup) -> Estimator:
             antenna_lever_arm_m=setup.antenna_lever_arm_m,
             imu_lever_arm_m=setup.imu_lever_arm_m,
             receiver_latency_s=setup.receiver_latency_s,
+            covariance_period_s=covariance_period_s,
         )
     )
 
@@ -212,4 +214,5 @@ ENGINES: dict[str, Callable[[RunSetup], Estimator]] = {
     "mahony": lambda s: AhrsEngine("mahony", s.observer_config()),
     "madgwick": lambda s: AhrsEngine("madgwick", s.observer_config()),
     "ekf": _ekf,
+    "ekf-cov-every-sample": lambda s: _ekf(s, covariance_period_s=0.0),
 }

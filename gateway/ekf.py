@@ -234,7 +234,8 @@ def transition_matrix(t_s: float, dv_f_ned_mps: Array, c_dt: Array) -> Array:
     A = F T with F averaged over the interval (f_n T = integral f_n dt, C T = integral C dt);
     A^4 = 0 (the chain bg -> phi -> v -> p is three long), so I + A + A^2/2 + A^3/6 is
     exp(A) exactly for the averaged F. Averaging F over up to ~50 ms instead of stepping it at
-    every sample is checked in tests/test_ekf.py and benchmarks/ekf_cost.py.
+    every sample is checked in tests/test_ekf.py and by the `ekf-cov-every-sample` engine of
+    benchmarks/accuracy.py.
     """
     a = np.zeros((N_STATES, N_STATES))
     a[POS, VEL] = t_s * _I3
