@@ -31,8 +31,8 @@ import tty
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from types import TracebackType
 
+from sim_bus.closing import Closing
 from sim_bus.nmealog import read_nmea_log
 
 POLL_S = 0.02  # how often a waiting player looks at the stop request and the port
@@ -53,7 +53,7 @@ class PlayerStats:
     dropped: int = 0
 
 
-class NmeaPlayer:
+class NmeaPlayer(Closing):
     """Background thread that plays (host time, sentence) lines onto a fresh pty.
 
     Use as a context manager or with :meth:`start` / :meth:`stop`; :attr:`device` is the path
@@ -131,17 +131,11 @@ class NmeaPlayer:
         ):
             self.link.unlink()
 
+    close = stop  # Closing: ``with player:`` stops it at the end
+
     def __enter__(self) -> NmeaPlayer:
         self.start()
         return self
-
-    def __exit__(
-        self,
-        exc_type: type[BaseException] | None,
-        exc: BaseException | None,
-        tb: TracebackType | None,
-    ) -> None:
-        self.stop()
 
     def _run(self) -> None:
         try:

@@ -80,42 +80,25 @@ def navgw(*args: str) -> subprocess.CompletedProcess[str]:
     )
 
 
+def replay_cli(
+    run_dir: Path, can_log: Path, out: Path, *extra: str
+) -> subprocess.CompletedProcess[str]:
+    return navgw(
+        "replay", "--can", str(can_log), "--nmea", str(run_dir / "gnss.nmea"), "--out", str(out),
+        *extra,
+    )  # fmt: skip
+
+
 def test_cli_exit_status_and_messages(run_dir: Path, tmp_path: Path) -> None:
-    ok = navgw(
-        "replay",
-        "--can",
-        str(run_dir / "imu.log"),
-        "--nmea",
-        str(run_dir / "gnss.nmea"),
-        "--out",
-        str(tmp_path / "o.log"),
-    )
+    ok = replay_cli(run_dir, run_dir / "imu.log", tmp_path / "o.log")
     assert ok.returncode == 0, ok.stderr
     assert "IMU:" in ok.stderr and "x real time" in ok.stderr
-    missing = navgw(
-        "replay",
-        "--can",
-        str(tmp_path / "nope.log"),
-        "--nmea",
-        str(run_dir / "gnss.nmea"),
-        "--out",
-        str(tmp_path / "o.log"),
-    )
+    missing = replay_cli(run_dir, tmp_path / "nope.log", tmp_path / "o.log")
     assert missing.returncode == 2
     assert f"{tmp_path / 'nope.log'}: CAN log not found or not a file" in missing.stderr
     bad_cfg = tmp_path / "bad.toml"
     bad_cfg.write_text("[vehicle]\nantenna_lever_arm = [0, 0, -3]\n")
-    bad = navgw(
-        "replay",
-        "--can",
-        str(run_dir / "imu.log"),
-        "--nmea",
-        str(run_dir / "gnss.nmea"),
-        "--out",
-        str(tmp_path / "o.log"),
-        "--config",
-        str(bad_cfg),
-    )
+    bad = replay_cli(run_dir, run_dir / "imu.log", tmp_path / "o.log", "--config", str(bad_cfg))
     assert bad.returncode == 2
     assert (
         "unknown key vehicle.antenna_lever_arm: expected one of antenna_lever_arm_m" in bad.stderr
