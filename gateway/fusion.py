@@ -52,8 +52,6 @@ class FusionCore:
         self.stats = FusionStats()
         self._imu_counters = imu_counters or ImuCounters()
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
-        self.last_aux: ImuAux | None = None
-        self._started = False
 
     @classmethod
     def from_config(
@@ -78,14 +76,8 @@ class FusionCore:
             imu_counters=imu_counters,
         )
 
-    @property
-    def started(self) -> bool:
-        """True once :meth:`start` has run (the address claim is under way)."""
-        return self._started
-
     def start(self, now: float) -> list[can.Message]:
         """Begin the address claim; nothing else is sent until it completes."""
-        self._started = True
         return self.claimer.start(now)
 
     def on_input(self, item: ImuSample | ImuAux | GnssFix) -> list[can.Message]:
@@ -96,8 +88,7 @@ class FusionCore:
             self.stats.gnss_fixes += 1
             self.engine.gnss(item)
             return []
-        self.stats.imu_aux += 1
-        self.last_aux = item
+        self.stats.imu_aux += 1  # temperature, supply, DIAG_STAT: counted by the decoder
         return []
 
     def on_imu(self, sample: ImuSample) -> list[can.Message]:
