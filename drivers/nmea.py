@@ -280,8 +280,10 @@ class NmeaDecoder:
         require_checksum: bool = False,
         max_sentence_len: int = 256,
         warn_interval_s: float = 10.0,
+        on_sentence: Callable[[float | None, str], None] | None = None,
     ) -> None:
         self.source = source
+        self.on_sentence = on_sentence  # sees every framed sentence first (input recording)
         self.require_checksum = require_checksum
         self.max_sentence_len = max_sentence_len
         self.warn_interval_s = warn_interval_s
@@ -397,6 +399,8 @@ class NmeaDecoder:
 
     def _sentence(self, text: str, t_host: float | None) -> None:
         """Check, parse and file one framed sentence (start character to checksum)."""
+        if self.on_sentence is not None:
+            self.on_sentence(t_host, text)
         where = self._candidate_where
         body, star, checksum = text[1:].partition("*")
         if star:

@@ -8,7 +8,7 @@ X.imu.log --nmea X.gnss.nmea``. Both files rotate together when either reaches
 write buffer), and the oldest pairs beyond ``keep_files`` are deleted. The running number
 orders the pairs: it does not depend on the host clock, which may jump at boot.
 
-Sentences are taken where the live NMEA decoder frames them (:class:`RecordingNmeaDecoder`),
+Sentences are taken where the live NMEA decoder frames them (its ``on_sentence`` hook),
 so nothing is parsed twice and the log holds exactly what the decoder was given, bad
 checksums included. A write error (disk full) stops the recording, logged, and nothing else.
 """
@@ -23,7 +23,6 @@ from pathlib import Path
 
 import can
 
-from drivers.nmea import NmeaDecoder
 from gateway.config import RecordingSection
 from sim_bus.canlog import CandumpWriter
 from sim_bus.nmealog import NmeaLogWriter
@@ -118,15 +117,3 @@ class InputRecorder:
             for suffix in (CAN_SUFFIX, NMEA_SUFFIX):
                 (self.directory / (old + suffix)).unlink(missing_ok=True)
             log.info("deleted old recording %s/%s.*", self.directory, old)
-
-
-class RecordingNmeaDecoder(NmeaDecoder):
-    """The live NMEA decoder, also handing every framed sentence to a recorder."""
-
-    def __init__(self, source: str, recorder: InputRecorder) -> None:
-        super().__init__(source)
-        self.recorder = recorder
-
-    def _sentence(self, text: str, t_host: float | None) -> None:
-        self.recorder.sentence(t_host, text)
-        super()._sentence(text, t_host)

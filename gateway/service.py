@@ -41,7 +41,7 @@ from gateway.address_claim import ClaimState
 from gateway.canbus import BusPlan, BusSpec, EchoFilter, claim_filters, is_bus_down
 from gateway.config import GatewayConfig
 from gateway.fusion import FusionCore
-from gateway.recording import InputRecorder, RecordingNmeaDecoder
+from gateway.recording import InputRecorder
 from gateway.replay import imu_config
 from gateway.sdnotify import SdNotifier
 from gateway.timebase import LIVE, TimeBase
@@ -184,10 +184,8 @@ class GatewayService:
             if config.recording.enabled
             else None
         )
-        decoder = (
-            RecordingNmeaDecoder(config.gnss.port, self.recorder)
-            if self.recorder is not None
-            else NmeaDecoder(config.gnss.port)
+        decoder = NmeaDecoder(
+            config.gnss.port, on_sentence=self.recorder.sentence if self.recorder else None
         )
         self.gnss = GnssSerialReader(
             config.gnss.port, config.gnss.baudrate, decoder=decoder, clock=timebase.now

@@ -9,8 +9,9 @@ from pathlib import Path
 
 import pytest
 
+from drivers.nmea import NmeaDecoder
 from gateway.config import RecordingSection
-from gateway.recording import CAN_SUFFIX, NMEA_SUFFIX, InputRecorder, RecordingNmeaDecoder
+from gateway.recording import CAN_SUFFIX, NMEA_SUFFIX, InputRecorder
 from gateway.replay import replay
 from sim_bus.canlog import read_candump
 from sim_bus.nmealog import read_nmea_log
@@ -30,7 +31,7 @@ def record(run_dir: Path, directory: Path, seconds: float, **section: float) -> 
     """Record the first ``seconds`` of a simulated run as the service would."""
     recorder = InputRecorder(RecordingSection(enabled=True, directory=str(directory), **section))
     recorder.open()
-    decoder = RecordingNmeaDecoder("pty", recorder)
+    decoder = NmeaDecoder("pty", on_sentence=recorder.sentence)
     t_end = next(iter(read_candump(run_dir / "imu.log"))).timestamp + seconds
     for msg in itertools.takewhile(
         lambda m: m.timestamp < t_end, read_candump(run_dir / "imu.log")
