@@ -35,6 +35,7 @@ import dbc
 from dbc.fast_decode import LittleEndianDecoder
 from drivers.canbus import FrameReader
 from drivers.samples import ImuAux, ImuSample
+from gateway.attitude import dcm_from_rpy_array
 from sim_bus.canlog import CandumpReader, read_candump
 
 log = logging.getLogger(__name__)
@@ -50,22 +51,7 @@ _SI_PER_UNIT = {"deg/s": math.pi / 180.0, "g": STANDARD_GRAVITY, "degC": 1.0, "V
 
 def c_b_imu_from_rpy_deg(rpy_deg: npt.ArrayLike) -> npt.NDArray[np.float64]:
     """Mounting rotation C_b^imu = Rz(yaw) Ry(pitch) Rx(roll) (SPEC 5): v_b = C_b^imu v_imu."""
-    roll, pitch, yaw = np.deg2rad(np.asarray(rpy_deg, dtype=float))
-    cr, sr, cp, sp, cy, sy = (
-        np.cos(roll),
-        np.sin(roll),
-        np.cos(pitch),
-        np.sin(pitch),
-        np.cos(yaw),
-        np.sin(yaw),
-    )
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
+    return dcm_from_rpy_array(np.deg2rad(np.asarray(rpy_deg, dtype=float)))[0]
 
 
 def sample_period_s(dec: int) -> float:

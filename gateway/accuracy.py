@@ -21,6 +21,7 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.samples import GnssFix, ImuAux, ImuSample
+from gateway.attitude import dcm_from_rpy_array
 from gateway.geodesy import lla_to_ned
 from gateway.solution import Estimator, Solution
 from sim_bus.truth import Truth
@@ -148,21 +149,6 @@ def max_abs(x: npt.ArrayLike) -> float:
     a = np.asarray(x, dtype=float)
     a = a[np.isfinite(a)]
     return float(np.max(np.abs(a))) if a.size else math.nan
-
-
-def dcm_from_rpy_array(rpy_rad: npt.ArrayLike) -> Array:
-    """C_b^n (n, 3, 3) from roll, pitch, yaw (n, 3), ZYX."""
-    r = np.asarray(rpy_rad, dtype=float).reshape(-1, 3)
-    cr, cp, cy = np.cos(r).T
-    sr, sp, sy = np.sin(r).T
-    return np.stack(
-        (
-            np.stack((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr), axis=-1),
-            np.stack((sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr), axis=-1),
-            np.stack((-sp, cp * sr, cp * cr), axis=-1),
-        ),
-        axis=1,
-    )
 
 
 def attitude_error_rad(rpy_est_rad: npt.ArrayLike, rpy_true_rad: npt.ArrayLike) -> Array:

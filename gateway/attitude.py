@@ -35,18 +35,24 @@ def exp_so3(phi: npt.ArrayLike) -> Array:
     return np.eye(3) + math.sin(angle) / angle * k + (1.0 - math.cos(angle)) / angle**2 * k @ k
 
 
+def dcm_from_rpy_array(rpy_rad: npt.ArrayLike) -> Array:
+    """C_b^n = Rz(yaw) Ry(pitch) Rx(roll), shape (n, 3, 3), from roll, pitch, yaw (n, 3)."""
+    r = np.asarray(rpy_rad, dtype=float).reshape(-1, 3)
+    cr, cp, cy = np.cos(r).T
+    sr, sp, sy = np.sin(r).T
+    return np.stack(
+        (
+            np.stack((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr), axis=-1),
+            np.stack((sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr), axis=-1),
+            np.stack((-sp, cp * sr, cp * cr), axis=-1),
+        ),
+        axis=1,
+    )
+
+
 def dcm_from_rpy(roll_rad: float, pitch_rad: float, yaw_rad: float) -> Array:
     """C_b^n = Rz(yaw) Ry(pitch) Rx(roll), shape (3, 3)."""
-    sr, cr = math.sin(roll_rad), math.cos(roll_rad)
-    sp, cp = math.sin(pitch_rad), math.cos(pitch_rad)
-    sy, cy = math.sin(yaw_rad), math.cos(yaw_rad)
-    return np.array(
-        [
-            [cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
-            [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
-            [-sp, cp * sr, cp * cr],
-        ]
-    )
+    return dcm_from_rpy_array((roll_rad, pitch_rad, yaw_rad))[0]
 
 
 def rpy_from_dcm(c_bn: npt.ArrayLike) -> tuple[float, float, float]:

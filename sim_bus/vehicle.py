@@ -25,6 +25,7 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
+from gateway.attitude import dcm_from_rpy_array
 from gateway.geodesy import ned_to_lla
 from sim_bus.terrain import Terrain, random_bumps
 from sim_bus.truth import Truth
@@ -342,20 +343,6 @@ class _Path:
         return self.psi_start_rad[i] + dpsi, kappa, dkappa, direction
 
 
-def _c_bn(rpy_rad: Array) -> Array:
-    """C_bn (n, 3, 3), body FRD to NED, from roll, pitch, yaw (ZYX) (n, 3)."""
-    cr, cp, cy = np.cos(rpy_rad).T
-    sr, sp, sy = np.sin(rpy_rad).T
-    return np.stack(
-        (
-            np.stack((cp * cy, sr * sp * cy - cr * sy, cr * sp * cy + sr * sy), axis=-1),
-            np.stack((cp * sy, sr * sp * sy + cr * cy, cr * sp * sy - sr * cy), axis=-1),
-            np.stack((-sp, sr * cp, cr * cp), axis=-1),
-        ),
-        axis=1,
-    )
-
-
 def simulate_vehicle(
     cfg: VehicleConfig, t0_s: float, dt_s: float = IMU_PERIOD_S, seed: int = 0
 ) -> Truth:
@@ -437,7 +424,7 @@ def simulate_vehicle(
         )
     )
     rpy = np.column_stack((phi, theta, (psi + np.pi) % (2.0 * np.pi) - np.pi))
-    c_bn = _c_bn(rpy)
+    c_bn = dcm_from_rpy_array(rpy)
 
     lever_arm_ant = np.asarray(cfg.antenna_lever_arm_m, dtype=float)
     lever_arm_imu = np.asarray(cfg.imu_lever_arm_m, dtype=float)
