@@ -245,8 +245,9 @@ def load_config(path: str | Path | None) -> GatewayConfig:
     """The config of a TOML file (None: all defaults); errors name the file and the key."""
     if path is None:
         return GatewayConfig()
+    table = load_toml(path)  # its own errors name the file
     try:
-        return config_from_table(load_toml(path), str(path))
+        return config_from_table(table, str(path))
     except ConfigError as err:
         raise ConfigError(f"{path}: {err}") from None
 
