@@ -30,7 +30,6 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from drivers.samples import GnssFix
 from gateway.accuracy import Accuracy, Trace, evaluate, first_time, record
 from gateway.baselines import ENGINES, RunSetup
 from gateway.engine_observer import ObserverEngine
@@ -67,11 +66,9 @@ def simulate_inputs(scenario: Scenario, seed: int, minutes: float | None = None)
     if minutes is not None:
         t_end = float(truth.t[0]) + 60.0 * minutes
         inputs = [x for x in inputs if x.t <= t_end]
-    latencies = [x.t - x.t_utc for x in inputs if isinstance(x, GnssFix) and x.t_utc is not None]
     setup = RunSetup(
         antenna_lever_arm_m=tuple(float(v) for v in truth.antenna_lever_arm_m),  # type: ignore[arg-type]
         imu_lever_arm_m=tuple(float(v) for v in truth.imu_lever_arm_m),  # type: ignore[arg-type]
-        receiver_latency_s=float(np.median(latencies)),
     )
     return SimRunData(scenario.name, seed, inputs, truth, setup)
 

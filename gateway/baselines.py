@@ -174,19 +174,17 @@ def _quaternion_from_dcm(c: Array) -> Array:
 
 @dataclass(frozen=True)
 class RunSetup:
-    """What every engine is told about one run: the vehicle geometry (SPEC 5, body FRD, m)
-    and the receiver latency (s) the user would configure (measured from the log)."""
+    """What every engine is told about one run: the vehicle geometry (SPEC 5, body FRD, m).
+    GNSS epochs are timed as the default config does (:mod:`gateway.epoch_clock`)."""
 
     antenna_lever_arm_m: tuple[float, float, float]
     imu_lever_arm_m: tuple[float, float, float]
-    receiver_latency_s: float
 
     def observer_config(self, **overrides: object) -> ObserverConfig:
         """The paper-parameter observer config for this run, with ``overrides``."""
         cfg = ObserverConfig(
             antenna_lever_arm_m=self.antenna_lever_arm_m,
             imu_lever_arm_m=self.imu_lever_arm_m,
-            receiver_latency_s=self.receiver_latency_s,
         )
         return replace(cfg, **overrides)  # type: ignore[arg-type]
 
@@ -200,7 +198,6 @@ def _ekf(setup: RunSetup, covariance_period_s: float = 0.05) -> Estimator:
         EkfConfig(
             antenna_lever_arm_m=setup.antenna_lever_arm_m,
             imu_lever_arm_m=setup.imu_lever_arm_m,
-            receiver_latency_s=setup.receiver_latency_s,
             covariance_period_s=covariance_period_s,
         )
     )

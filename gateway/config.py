@@ -18,6 +18,7 @@ from gateway.config_schema import ConfigError, from_table, in_range, load_toml
 from gateway.ekf_config import EkfConfig
 from gateway.engine_ekf import EkfEngine
 from gateway.engine_observer import ObserverEngine
+from gateway.epoch_clock import EpochTime
 from gateway.estimator_config import ObserverConfig
 from gateway.j1939 import DEFAULT_MANUFACTURER_CODE, DEFAULT_SOURCE_ADDRESS, Pgn
 from gateway.scheduler import DEFAULT_RATES_HZ, MAX_RATE_HZ
@@ -81,13 +82,20 @@ class GnssSection:
 
     port: str = field(default="/dev/ttyUSB0", metadata=_doc("serial device of the receiver"))
     baudrate: int = field(default=115200, metadata=_doc("8N1", **in_range(1200, 4_000_000)))
-    host_clock_synchronised: bool = field(
-        default=False,
-        metadata=_doc("true when the host clock follows UTC (PPS/NTP): epochs use NMEA time"),
+    epoch_time: EpochTime = field(
+        default=EpochTime.AUTO,
+        metadata=_doc(
+            "utc: the host clock follows UTC (PPS/NTP), epochs use NMEA time; receive: it runs"
+            " free, epochs are the least receive delay minus receiver_latency_s; auto: utc"
+            " when the receive delays fit a synchronised clock (0-0.5 s), else receive"
+        ),
     )
     receiver_latency_s: float = field(
         default=0.05,
-        metadata=_doc("else: epoch = receive time minus this latency", **in_range(0.0, 1.0)),
+        metadata=_doc(
+            "least delay from an epoch to the receipt of its last sentence (receive mode)",
+            **in_range(0.0, 1.0),
+        ),
     )
 
 
@@ -188,7 +196,7 @@ ENGINE_SECTIONS: dict[str, type] = {"observer": ObserverConfig, "ekf": EkfConfig
 _SHARED = {
     "antenna_lever_arm_m": "vehicle",
     "imu_lever_arm_m": "vehicle",
-    "host_clock_synchronised": "gnss",
+    "epoch_time": "gnss",
     "receiver_latency_s": "gnss",
 }
 

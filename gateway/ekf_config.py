@@ -13,6 +13,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from gateway.epoch_clock import EpochTime
 from gateway.estimator_config import GRAVITY_MPS2, Vec3Tuple
 
 DEG = math.pi / 180.0
@@ -56,8 +57,8 @@ class EkfConfig:
     imu_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # IMU rel. reference point, body
 
     # --- GNSS timing ---
-    host_clock_synchronised: bool = False  # True: epoch time = GnssFix.t_utc
-    receiver_latency_s: float = 0.0  # else epoch time = receive time GnssFix.t - this
+    epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock
+    receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
     gnss_timeout_s: float = 1.0  # no accepted fix for this long (receive time): COASTING
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
     history_s: float = 1.0  # INS history kept for late epochs; older epochs are dropped

@@ -11,8 +11,8 @@ Design choices (ALGORITHMS.md 3 leaves them to the implementer):
 - State location: the INS state is the IMU point; antenna and reference point are reached
   through the lever arms (measurement models, read-out), so the mechanisation needs no
   lever-arm accelerations.
-- Late epochs: a fix describes the epoch ``t_e`` (UTC if the host clock is synchronised, else
-  receive time minus ``receiver_latency_s``) and arrives later. The innovation and H are
+- Late epochs: a fix describes the epoch ``t_e`` (:mod:`gateway.epoch_clock`) and arrives
+  later. The innovation and H are
   computed against the INS state interpolated from the history at ``t_e``; the correction is
   applied to the current state (and to the history, so that the next epoch is not double
   counted). Approximation: the error state is taken as constant over the delay (< 0.1 s:
@@ -61,6 +61,7 @@ from gateway.ekf import (
     transition_matrix,
 )
 from gateway.ekf_config import DEFAULT_GNSS_SIGMAS, DEG, EkfConfig, EkfTuning
+from gateway.epoch_clock import EpochClock
 from gateway.estimator_config import GRAVITY_MPS2
 from gateway.geodesy import LocalFrame
 from gateway.solution import Convergence, Mode, Solution, navigation_mode
@@ -145,6 +146,7 @@ class EkfEngine:
         cfg = config if config is not None else EkfConfig()
         self.cfg = cfg
         self.counters = EkfCounters()
+        self._clock = EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
         self._l_imu_ant_b = self._l_ant_b - self._l_imu_b  # antenna relative to the IMU
@@ -272,17 +274,11 @@ class EkfEngine:
         self._last_fix = fix
         if self._ins is None or fix.quality == FixQuality.NONE:
             return
-        t_e = self._epoch_time(fix)
+        t_e = self._clock.epoch_time(fix)
         if self._t_s is None or t_e > self._t_s:
             self._pending.append((t_e, fix))
             return
         self._fuse_epoch(fix, t_e)
-
-    def _epoch_time(self, fix: GnssFix) -> float:
-        """Epoch instant on the host clock: UTC if synchronised, else receive time - latency."""
-        if self.cfg.host_clock_synchronised and fix.t_utc is not None:
-            return fix.t_utc
-        return fix.t - self.cfg.receiver_latency_s
 
     def _fuse_epoch(self, fix: GnssFix, t_e: float) -> None:
         """Align, reset or fuse one epoch against the INS state at its epoch time ``t_e``."""

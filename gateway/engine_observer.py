@@ -28,6 +28,7 @@ from gateway.attitude import (
     rpy_from_dcm,
     wrap_pi,
 )
+from gateway.epoch_clock import EpochClock
 from gateway.estimator_config import GRAVITY_MPS2, ObserverConfig
 from gateway.geodesy import LocalFrame
 from gateway.heading import DEG, HeadingChannel
@@ -69,6 +70,7 @@ class ObserverEngine:
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
         self._heading = HeadingChannel(cfg)
+        self._clock = EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._observer: TereshkovObserver | None = None
         # tilt alignment
         self._align_sum = [0.0] * 6  # sums of w_b and f_b over the window
@@ -224,7 +226,7 @@ class ObserverEngine:
         self._last_fix = fix
         if self._observer is None or fix.quality == FixQuality.NONE:
             return
-        t_e = self._epoch_time(fix)
+        t_e = self._clock.epoch_time(fix)
         if self._t_s is None or t_e > self._t_s:
             self._pending.append((t_e, fix))
             return
@@ -306,16 +308,6 @@ class ObserverEngine:
         if vel is None and fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps:
             return (0.0, 0.0)
         return vel
-
-    def _epoch_time(self, fix: GnssFix) -> float:
-        """Epoch instant on the IMU (host) clock.
-
-        With a synchronised host clock the sentence's UTC time is the epoch; otherwise the
-        receive time minus the configured receiver latency.
-        """
-        if self.cfg.host_clock_synchronised and fix.t_utc is not None:
-            return fix.t_utc
-        return fix.t - self.cfg.receiver_latency_s
 
     def _history_at(self, t_s: float) -> _Row | None:
         """History row interpolated at ``t_s``; None if older than the history."""

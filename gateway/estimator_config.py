@@ -9,6 +9,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from gateway.epoch_clock import EpochTime
+
 Vec3Tuple = tuple[float, float, float]
 
 GRAVITY_MPS2 = 9.80665  # ALGORITHMS.md conventions: g = [0, 0, +9.80665] in NED
@@ -29,8 +31,8 @@ class ObserverConfig:
     imu_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # IMU rel. reference point, body
 
     # --- GNSS timing ---
-    host_clock_synchronised: bool = False  # True: epoch time = GnssFix.t_utc
-    receiver_latency_s: float = 0.0  # else epoch time = receive time GnssFix.t - this
+    epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock
+    receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
     gnss_timeout_s: float = 1.0  # no usable velocity for this long (receive time): COASTING
     max_gnss_interval_s: float = 0.5  # consecutive epochs further apart are not differenced
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output

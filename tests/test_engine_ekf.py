@@ -24,6 +24,7 @@ from gateway.attitude import dcm_from_rpy
 from gateway.ekf import attitude_error
 from gateway.ekf_config import EkfConfig
 from gateway.engine_ekf import EkfEngine
+from gateway.epoch_clock import EpochTime
 from gateway.geodesy import lla_to_ned
 from gateway.solution import Mode, Solution
 from sim_bus.gnss_receiver import FixInterval
@@ -59,7 +60,7 @@ def config_for(truth: Truth, **kw: object) -> EkfConfig:
     return EkfConfig(
         antenna_lever_arm_m=tuple(truth.antenna_lever_arm_m),
         imu_lever_arm_m=tuple(truth.imu_lever_arm_m),
-        host_clock_synchronised=True,
+        epoch_time=EpochTime.UTC,
         **kw,  # type: ignore[arg-type]
     )
 
@@ -84,21 +85,28 @@ def trace(
         min_eig = min(min_eig, float(np.linalg.eigvalsh(p_full)[0]))
         max_asym = max(max_asym, float(np.abs(p_full - p_full.T).max()))
         i = int(np.argmin(np.abs(truth.t - s.t)))
-        e = np.concatenate((
-            st[0] - lla_to_ned(truth.lla[i], eng.origin_lla),
-            st[1] - truth.vel_ned_mps[i],
-            attitude_error(dcm_from_rpy(*truth.rpy_rad[i]), st[2]),
-        ))
+        e = np.concatenate(
+            (
+                st[0] - lla_to_ned(truth.lla[i], eng.origin_lla),
+                st[1] - truth.vel_ned_mps[i],
+                attitude_error(dcm_from_rpy(*truth.rpy_rad[i]), st[2]),
+            )
+        )
         cov = eng.navigation_covariance()
         assert cov is not None
-        nees.append([float(e[b] @ np.linalg.solve(cov[b, b], e[b]))
-                     for b in (slice(0, 3), slice(3, 6), slice(6, 9))])
+        nees.append(
+            [
+                float(e[b] @ np.linalg.solve(cov[b, b], e[b]))
+                for b in (slice(0, 3), slice(3, 6), slice(6, 9))
+            ]
+        )
         t_rel.append(s.t - truth.t[0])
         errs.append(e)
         sols.append(eng.solution())
         rows.append(i)
-    return eng, Trace(np.array(t_rel), np.array(errs), np.array(nees), sols, np.array(rows),
-                      min_eig, max_asym)
+    return eng, Trace(
+        np.array(t_rel), np.array(errs), np.array(nees), sols, np.array(rows), min_eig, max_asym
+    )
 
 
 def nees_interval(dof: int, duration_s: float, tau_c_s: float) -> tuple[float, float]:
@@ -117,8 +125,7 @@ def test_consistency_on_short(short_run: tuple[Truth, list, list]) -> None:
     eng, tr = trace(truth, imu, fixes, config_for(truth))
     nav = tr.t_s > 40.0  # heading aligned at ~33 s when the vehicle reaches 1.5 m/s
     dur = float(tr.t_s[nav][-1] - tr.t_s[nav][0])
-    for b, (name, tau_c) in enumerate((("position", 30.0), ("velocity", 2.0),
-                                       ("attitude", 10.0))):
+    for b, (name, tau_c) in enumerate((("position", 30.0), ("velocity", 2.0), ("attitude", 10.0))):
         lo, hi = nees_interval(3, dur, tau_c)
         mean = float(tr.nees[nav, b].mean())
         assert lo <= mean <= hi, f"{name} NEES {mean:.2f} outside [{lo:.2f}, {hi:.2f}]"
@@ -128,8 +135,12 @@ def test_consistency_on_short(short_run: tuple[Truth, list, list]) -> None:
     late = tr.t_s > 60.0  # after the first turn (accelerometer bias observable)
     rp = np.array([(s.roll_rad, s.pitch_rad) for s in tr.sol]) - truth.rpy_rad[tr.truth_i, :2]
     rp_rms_deg = np.degrees(np.sqrt(np.mean(rp[late] ** 2, axis=0)))
-    print("roll/pitch RMS deg", rp_rms_deg, "horizontal position RMS m",
-          np.sqrt(np.mean(np.sum(tr.err[late, :2] ** 2, axis=1))))
+    print(
+        "roll/pitch RMS deg",
+        rp_rms_deg,
+        "horizontal position RMS m",
+        np.sqrt(np.mean(np.sum(tr.err[late, :2] ** 2, axis=1))),
+    )
     assert rp_rms_deg.max() < 0.1
     assert np.sqrt(np.mean(np.sum(tr.err[late, :2] ** 2, axis=1))) < 0.04
     modes = [s.mode for s in tr.sol]
@@ -141,9 +152,17 @@ def test_gyro_and_accel_biases_converge_when_constant(tmp_path: Path) -> None:
     sc = SCENARIOS["short"]
     bg = (0.08 * DEG, -0.06 * DEG, 0.05 * DEG)
     ba = (0.04, -0.03, 0.02)
-    sc = replace(sc, vehicle=replace(sc.vehicle, n_passes=6), imu=replace(
-        sc.imu, gyro_turn_on_bias_rps=bg, accel_turn_on_bias_mps2=ba,
-        gyro_bias_stability_rps=1e-9, accel_bias_stability_mps2=1e-9))
+    sc = replace(
+        sc,
+        vehicle=replace(sc.vehicle, n_passes=6),
+        imu=replace(
+            sc.imu,
+            gyro_turn_on_bias_rps=bg,
+            accel_turn_on_bias_mps2=ba,
+            gyro_bias_stability_rps=1e-9,
+            accel_bias_stability_mps2=1e-9,
+        ),
+    )
     truth, imu, fixes = simulate(sc, tmp_path, seed=3)
     eng, tr = trace(truth, imu, fixes, config_for(truth), every=205)
     end = tr.sol[-1]
@@ -162,9 +181,12 @@ def test_position_jump_is_rejected_and_counted(short_run: tuple[Truth, list, lis
     truth, imu, fixes = short_run
     t_jump = truth.t[0] + 80.0
     k0 = next(k for k, f in enumerate(fixes) if f.t >= t_jump)
-    jumped = [replace(f, lat_deg=f.lat_deg + 5.0 / 111_250.0)  # 5 epochs 5 m north
-              if k0 <= k < k0 + 5 and f.lat_deg is not None else f
-              for k, f in enumerate(fixes)]
+    jumped = [
+        replace(f, lat_deg=f.lat_deg + 5.0 / 111_250.0)  # 5 epochs 5 m north
+        if k0 <= k < k0 + 5 and f.lat_deg is not None
+        else f
+        for k, f in enumerate(fixes)
+    ]
     cfg = config_for(truth)
     eng, tr = trace(truth, imu, jumped, cfg, every=10)
     _, ref = trace(truth, imu, fixes, cfg, every=10)
@@ -175,8 +197,9 @@ def test_position_jump_is_rejected_and_counted(short_run: tuple[Truth, list, lis
 
 def test_recovers_after_a_long_outage_by_reset(tmp_path: Path) -> None:
     sc = SCENARIOS["short"]
-    sc = replace(sc, gnss=replace(sc.gnss, fix_schedule=(
-        FixInterval(60.0, 100.0, FixQuality.NONE),)))
+    sc = replace(
+        sc, gnss=replace(sc.gnss, fix_schedule=(FixInterval(60.0, 100.0, FixQuality.NONE),))
+    )
     truth, imu, fixes = simulate(sc, tmp_path)
     eng, tr = trace(truth, imu, fixes, config_for(truth), every=20)
     modes = {round(t): s.mode for t, s in zip(tr.t_s, tr.sol, strict=True)}

@@ -8,6 +8,7 @@ import numpy as np
 
 from drivers.samples import FixQuality, GnssFix
 from gateway.engine_observer import ObserverEngine
+from gateway.epoch_clock import EpochTime
 from gateway.estimator_config import ObserverConfig
 from gateway.geodesy import lla_to_ned
 from gateway.solution import Mode, Solution
@@ -124,23 +125,29 @@ def test_velocity_glitch_of_5_s_leaves_no_lasting_bias() -> None:
     assert math.degrees(roll_gap) < 0.05
 
 
-def test_configured_receiver_latency_beats_ignoring_it() -> None:
+def test_epochs_on_utc_or_the_configured_latency_beat_ignoring_the_latency() -> None:
     motion = Motion([*START, *HEADLANDS * 2])
     fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, latency_s=0.05)
+    # the same receiver on a host clock that runs 37 s off UTC
+    free_clock = [replace(f, t_utc=f.t_utc - 37.0) for f in fixes if f.t_utc]
 
-    def tilt_rms_deg(cfg: ObserverConfig) -> float:
+    def tilt_rms_deg(fixes: list[GnssFix], **timing: Any) -> float:
+        cfg = ObserverConfig(antenna_lever_arm_m=LEVER, **timing)
         out = [(t, s) for t, s in _trace(motion, cfg, fixes=fixes) if t > 30.0]
         e = [math.hypot(s.roll_rad or 0.0, s.pitch_rad or 0.0) for _, s in out]
         return math.degrees(math.sqrt(np.mean(np.square(e))))
 
-    ignored = tilt_rms_deg(ObserverConfig(antenna_lever_arm_m=LEVER))
-    handled = tilt_rms_deg(ObserverConfig(antenna_lever_arm_m=LEVER, receiver_latency_s=0.05))
-    synced = tilt_rms_deg(ObserverConfig(antenna_lever_arm_m=LEVER, host_clock_synchronised=True))
+    ignored = tilt_rms_deg(fixes, epoch_time=EpochTime.RECEIVE)
+    handled = tilt_rms_deg(fixes, epoch_time=EpochTime.RECEIVE, receiver_latency_s=0.05)
+    synced = tilt_rms_deg(fixes, epoch_time=EpochTime.UTC)
     # 50 ms in a 3 m/s, 0.3 rad/s turn: v w 0.05 = 0.045 m/s^2 of false e (0.26 deg if held
     # for many tau; the turns last 10 s). Measured: 0.052 deg rms ignored, 0.005 handled.
     assert ignored > 0.03
     assert handled < 0.01 and synced < 0.01
     assert ignored > 5 * handled
+    # auto: UTC on a synchronised host whatever latency is configured, else the latency
+    assert tilt_rms_deg(fixes, receiver_latency_s=0.2) == synced
+    assert tilt_rms_deg(free_clock, receiver_latency_s=0.05) == handled
 
 
 def test_switching_bias_estimation_off_is_the_baseline() -> None:

@@ -1,0 +1,87 @@
+"""GNSS epochs on the host clock: UTC when the host follows it, else receive time - latency."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from drivers.samples import FixQuality, GnssFix
+from gateway.epoch_clock import DELAY_WINDOW, EpochClock, EpochTime
+
+T_UTC0 = 1_700_000_000.0
+
+
+def fixes(host_minus_utc_s: float, latency_s: float, jitter_s: float, n: int = 50) -> list[GnssFix]:
+    """10 Hz epochs received ``latency_s`` plus up to ``jitter_s`` of serial jitter after them,
+    on a host clock ``host_minus_utc_s`` ahead of UTC."""
+    jitter = np.random.default_rng(3).uniform(0.0, jitter_s, n)
+    return [
+        GnssFix(
+            t=T_UTC0 + 0.1 * k + host_minus_utc_s + latency_s + float(jitter[k]),
+            t_utc=T_UTC0 + 0.1 * k,
+            quality=FixQuality.RTK_FIXED,
+        )
+        for k in range(n)
+    ]
+
+
+def epochs(clock: EpochClock, stream: list[GnssFix]) -> np.ndarray:
+    return np.array([clock.epoch_time(f) for f in stream])
+
+
+def test_auto_on_a_utc_host_uses_the_sentence_time_whatever_latency_is_configured() -> None:
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.3)
+    stream = fixes(host_minus_utc_s=0.002, latency_s=0.068, jitter_s=0.01)
+    assert np.array_equal(epochs(clock, stream), [f.t_utc for f in stream])
+    assert clock.host_follows_utc is True
+
+
+def test_auto_on_a_free_running_host_uses_the_latency_without_the_serial_jitter() -> None:
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.068)
+    stream = fixes(host_minus_utc_s=-3600.0, latency_s=0.068, jitter_s=0.01)
+    t_e = epochs(clock, stream)
+    assert clock.host_follows_utc is False
+    # true epochs on this host clock: UTC - 3600 s; the error is the smallest jitter so far,
+    # never a later epoch's own jitter (receive time - latency would carry up to 10 ms)
+    true_epoch = np.array([f.t_utc for f in stream if f.t_utc is not None]) - 3600.0
+    error = t_e - true_epoch
+    naive_error = np.array([f.t for f in stream]) - 0.068 - true_epoch
+    assert np.all(error >= 0.0) and np.all(np.diff(error) <= 1e-9)
+    assert error[-1] < 1e-3 and np.max(naive_error) > 5e-3
+
+
+def test_the_smallest_delay_is_taken_over_a_sliding_window() -> None:
+    clock = EpochClock(EpochTime.RECEIVE, receiver_latency_s=0.0)
+    early = fixes(host_minus_utc_s=5.0, latency_s=0.0, jitter_s=0.0, n=1)[0]
+    clock.epoch_time(early)
+    later = [
+        GnssFix(t=f.t + 0.02, t_utc=f.t_utc, quality=f.quality)  # the host clock stepped 20 ms
+        for f in fixes(host_minus_utc_s=5.0, latency_s=0.0, jitter_s=0.0, n=DELAY_WINDOW + 1)
+    ]
+    t_e = epochs(clock, later)
+    assert t_e[0] == pytest.approx(later[0].t - 0.02)  # the old minimum still counts
+    assert t_e[-1] == pytest.approx(later[-1].t)  # until it leaves the window
+
+
+@pytest.mark.parametrize("mode", list(EpochTime))
+def test_a_fix_without_a_date_is_placed_at_receive_time_minus_latency(mode: EpochTime) -> None:
+    clock = EpochClock(mode, receiver_latency_s=0.05)
+    undated = GnssFix(t=T_UTC0 + 0.07, t_utc=None, quality=FixQuality.RTK_FIXED)
+    assert clock.epoch_time(undated) == pytest.approx(T_UTC0 + 0.02)
+
+
+def test_explicit_modes_do_not_guess() -> None:
+    stream = fixes(host_minus_utc_s=0.0, latency_s=0.068, jitter_s=0.0)
+    utc = EpochClock(EpochTime.UTC, 0.0)
+    assert np.array_equal(epochs(utc, stream), [f.t_utc for f in stream])
+    receive = EpochClock(EpochTime.RECEIVE, 0.05)
+    assert epochs(receive, stream) == pytest.approx([f.t - 0.05 for f in stream], abs=1e-9)
+    assert receive.host_follows_utc is False
+    assert EpochClock(EpochTime.AUTO, 0.0).host_follows_utc is None  # nothing seen yet
+
+
+@pytest.mark.parametrize("host_minus_utc_s", [-0.1, 0.7, 3.0])
+def test_delays_out_of_a_synced_receivers_reach_mean_a_free_host(host_minus_utc_s: float) -> None:
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.04)
+    epochs(clock, fixes(host_minus_utc_s, latency_s=0.04, jitter_s=0.0, n=5))
+    assert clock.host_follows_utc is False
