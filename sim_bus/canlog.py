@@ -88,7 +88,6 @@ class CandumpWriter(Closing):
             self._file.close()
 
 
-
 def write_candump(path: str | Path, messages: Iterable[can.Message], channel: str = "can0") -> int:
     """Write ``messages`` to a new candump ``-L`` file; returns the number of frames."""
     with CandumpWriter(path, channel) as writer:

@@ -121,7 +121,6 @@ class NmeaLogReader(Closing, Iterator[tuple[float | None, str]]):
             self._own = None
 
 
-
 def read_nmea_log(
     source: str | os.PathLike[str] | IO[str] | IO[bytes], max_reports: int = MAX_LOGGED_BAD_LINES
 ) -> NmeaLogReader:
@@ -150,7 +149,6 @@ class NmeaLogWriter(Closing):
         if self._own is not None:
             self._own.close()
             self._own = None
-
 
 
 def write_nmea_log(

@@ -87,8 +87,9 @@ def test_correct_matches_a_hand_worked_scalar_update() -> None:
     assert res.accepted and math.isclose(res.nis, 5.0)
     assert math.isclose(dx[0], 4.0) and math.isclose(p[0, 0], 0.8)
     # a 6-sigma innovation is gated and leaves dx and P alone
-    res = correct(p, dx, Measurement("x", np.array([4.0 + 6.0 * math.sqrt(1.8)]), h,
-                                     np.array([[1.0]])), 5.0)
+    res = correct(
+        p, dx, Measurement("x", np.array([4.0 + 6.0 * math.sqrt(1.8)]), h, np.array([[1.0]])), 5.0
+    )
     assert not res.accepted and math.isclose(dx[0], 4.0) and math.isclose(p[0, 0], 0.8)
 
 
@@ -101,8 +102,13 @@ def test_interval_transition_equals_per_sample_product() -> None:
     """Phi from the IMU sums over 10 samples (50 ms) vs the product of 10 per-sample Phis."""
     dt = 4.0 / 819.2
     rng = np.random.default_rng(0)
-    imu = [(np.array([0.0, 0.0, 0.5]) + 0.01 * rng.standard_normal(3),
-            np.array([1.0, 1.5, -9.8]) + 0.2 * rng.standard_normal(3)) for _ in range(10)]
+    imu = [
+        (
+            np.array([0.0, 0.0, 0.5]) + 0.01 * rng.standard_normal(3),
+            np.array([1.0, 1.5, -9.8]) + 0.2 * rng.standard_normal(3),
+        )
+        for _ in range(10)
+    ]
     per_sample, interval = Strapdown(C_BN), Strapdown(C_BN)
     phi_steps = np.eye(N_STATES)
     for w, f in imu:
