@@ -24,6 +24,15 @@ from sim_bus.scenarios import SCENARIOS, generate
 #: so the emulated guest need not simulate and replay (Python under TCG is ~10x slower).
 PREPARED = "NAVGW_VCAN_PREPARED"
 
+#: candump's socket receive buffer (-r), bytes: thousands of frames, so that a candump the
+#: emulated guest leaves unscheduled for a while loses none (the default holds far fewer).
+RCVBUF_BYTES = 4 * 1024 * 1024
+
+
+def candump_argv(channel: str, *options: str) -> list[str]:
+    """``candump`` with ``options`` on ``channel``, with a socket buffer that loses nothing."""
+    return ["candump", *options, "-r", str(RCVBUF_BYTES), channel]
+
 
 def _vcan_problem(channel: str) -> str | None:
     missing = [t for t in ("candump", "canplayer", "cansend", "ip") if shutil.which(t) is None]
@@ -71,7 +80,7 @@ def candump(vcan0: str, tmp_path: Path) -> Iterator[Path]:
     """``candump -L`` recording the bus into a file for the duration of the test."""
     path = tmp_path / "candump.log"
     with path.open("w") as f:
-        proc = subprocess.Popen(["candump", "-L", vcan0], stdout=f)
+        proc = subprocess.Popen(candump_argv(vcan0, "-L"), stdout=f)
         try:
             yield path
         finally:

@@ -12,6 +12,7 @@ from typing import IO
 import dbc
 from sim_bus.canlog import read_candump
 from tests.n2k_check import decode_log
+from tests.vcan.conftest import candump_argv
 
 
 def _first_seconds(sim_run: Path, tmp_path: Path, seconds: float) -> Path:
@@ -63,10 +64,16 @@ def test_candump_piped_into_cantools_decode_reads_the_gateway_frames(
     vcan0: str, sim_run: Path, tmp_path: Path
 ) -> None:
     # cantools decodes a few hundred lines a second in the emulated guest: a short excerpt,
-    # paced by canplayer (-t -g 15: a frame every 15 ms), so that no frame is dropped
+    # paced by canplayer (-t -g 15: a frame every 15 ms), and a large socket buffer for candump
+    # (the emulator can starve it for a while), so that no frame is dropped
     out = _first_seconds(sim_run, tmp_path, seconds=3.0)
     expected = sum(m.id == "attitude" for m in decode_log(out))
-    dump = subprocess.Popen(["candump", vcan0], stdout=subprocess.PIPE)
+    # candump | tee | cantools decode: tee keeps what candump printed, to compare line for line
+    raw = tmp_path / "candump.txt"
+    dump = subprocess.Popen(candump_argv(vcan0, "-d"), stdout=subprocess.PIPE)
+    tee = subprocess.Popen(["tee", str(raw)], stdin=dump.stdout, stdout=subprocess.PIPE)
+    assert dump.stdout is not None
+    dump.stdout.close()
     decode = subprocess.Popen(
         [
             sys.executable,
@@ -78,12 +85,12 @@ def test_candump_piped_into_cantools_decode_reads_the_gateway_frames(
             "0x03FFFF00",
             str(dbc.path(dbc.OUTPUT_DBC)),
         ],
-        stdin=dump.stdout,
+        stdin=tee.stdout,
         stdout=subprocess.PIPE,
         text=True,
     )
-    assert dump.stdout is not None and decode.stdout is not None
-    dump.stdout.close()
+    assert tee.stdout is not None and decode.stdout is not None
+    tee.stdout.close()
     # the pipeline is up (python starts slowly in the emulated guest) once a probe comes out
     stop_probing = threading.Event()
 
@@ -102,9 +109,11 @@ def test_candump_piped_into_cantools_decode_reads_the_gateway_frames(
     time.sleep(2.0)
     dump.terminate()
     text, _ = decode.communicate(timeout=60)
+    printed = raw.read_text()
+    assert "DROPCOUNT" not in printed, "the kernel dropped frames for candump: the guest is starved"
     assert "ADDRESS_CLAIM(" in text
     attitude = [line for line in text.splitlines() if "ATTITUDE(" in line]
-    assert len(attitude) == expected > 100  # every one, at 50 Hz after the claim
+    assert len(attitude) == printed.count(" 0DF1191C ") == expected > 100  # all, at 50 Hz
     assert "YAW:" in attitude[-1] and "ROLL:" in attitude[-1] and "rad" in attitude[-1]
     assert "NAVGW_GYRO_BIAS(" in text and "POSITION_RAPID_UPDATE(" in text
     assert "GNSS_POSITION_DATA_FP(" in text  # fast-packet frames labelled too

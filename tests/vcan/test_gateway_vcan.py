@@ -31,6 +31,7 @@ from sim_bus.nmealog import read_nmea_log
 from sim_bus.truth import Truth
 from tests.n2k_check import attitude_errors_deg, decode_log, position_errors_m
 from tests.notify_socket import NotifySocket
+from tests.vcan.conftest import candump_argv
 
 REPO = Path(__file__).resolve().parents[2]
 GYRO_ID = 0x0CFF1080
@@ -69,7 +70,7 @@ def _ip(*args: str) -> None:
 
 
 def _candump(channel: str, path: Path) -> subprocess.Popen[bytes]:
-    return subprocess.Popen(["candump", "-L", channel], stdout=path.open("w"))
+    return subprocess.Popen(candump_argv(channel, "-L"), stdout=path.open("w"))
 
 
 @pytest.fixture(scope="module")
