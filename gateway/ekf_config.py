@@ -59,7 +59,7 @@ class EkfConfig:
     # --- GNSS timing ---
     epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock
     receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
-    gnss_timeout_s: float = 1.0  # no accepted fix for this long (receive time): COASTING
+    gnss_timeout_s: float = 1.5  # no accepted fix for this long (receive time): COASTING
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
     history_s: float = 1.0  # INS history kept for late epochs; older epochs are dropped
 

@@ -346,18 +346,19 @@ class ObserverEngine:
         horizontal part). The velocity is moved from the antenna to the IMU with both lever
         arms first, so that it describes the point whose specific force is measured. Before the
         heading is known the horizontal f_p is in an arbitrary azimuth, so the loop is closed
-        only while stationary. |e| > ``e_gate_mps2`` is a glitch: the loop stays open for the
-        interval (no attitude kick) and learning is gated (hold-off after it).
+        only while stationary. A velocity mismatch |e| T beyond :meth:`_glitch_dv_mps` is a
+        glitch: the loop stays open for the interval (no attitude kick) and learning is gated
+        (hold-off after it).
 
         A rejected epoch is skipped, not made the base of the next difference: the next e
         spans the last accepted epoch to it, and its control rate, held for one epoch period,
-        is scaled by interval / period, and the gate applies to the scaled e (a velocity
-        error of ``e_gate_mps2`` x period however long the span: a velocity step is rejected
-        until the span exceeds ``max_gnss_interval_s`` and a new base starts after it). So the
+        is scaled by interval / period. The gate is that of one period however long the span:
+        a velocity step is rejected until the span exceeds ``max_gnss_interval_s`` and a new
+        base starts after it. So the
         applied tilt corrections still telescope to
         (v_last - v_first) / (g tau), one velocity error, however many epochs are rejected.
         Differencing against a rejected epoch instead made noisy spells (single-point GNSS,
-        8 cm/s: e ~1.1 m/s^2 against the 1.5 m/s^2 gate) a random walk of 1-2 deg in tilt.
+        8 cm/s: e ~1.1 m/s^2 against a 1.5 m/s^2 gate) a random walk of 1-2 deg in tilt.
         """
         obs = self._observer
         assert obs is not None
@@ -374,7 +375,7 @@ class ObserverEngine:
         last = self._t_last_epoch_s
         period_s = interval_s if last is None else min(interval_s, max(t_e - last, 1e-3))
         scale = interval_s / period_s
-        if math.hypot(e_n, e_e) * scale > self.cfg.e_gate_mps2:
+        if math.hypot(e_n, e_e) * interval_s > self._glitch_dv_mps(period_s):
             self._set_tilt_open()
             return True
         self._prev_epoch = current
@@ -386,6 +387,16 @@ class ObserverEngine:
         a = min(1.0, interval_s / E_NOISE_TAU_S)
         self._e_var_mps4 += a * (0.5 * (e_n * e_n + e_e * e_e) - self._e_var_mps4)
         return False
+
+    def _glitch_dv_mps(self, period_s: float) -> float:
+        """Largest velocity-change mismatch over one epoch period that is not a glitch: white
+        GNSS velocity noise (the difference of two 2-D errors, Rayleigh with scale sqrt(2)
+        sigma_v) plus a specific-force mismatch ``e_gate_mps2``. The noise part does not
+        shrink with the period, so a 20 Hz receiver is not half rejected, nor does a 1 Hz
+        receiver get a gate 10 times wider than its noise."""
+        cfg = self.cfg
+        noise_mps = cfg.glitch_sigma * math.sqrt(2.0) * cfg.gnss_vel_sigma_mps
+        return noise_mps + cfg.e_gate_mps2 * period_s
 
     def _set_tilt_open(self) -> None:
         assert self._observer is not None
@@ -477,8 +488,8 @@ class ObserverEngine:
         The propagated state at t_e is reconstructed from the f_p integral in the history:
         v(t_e) = v_now - (S_f(now) - S_f(t_e)) - g (now - t_e), p(t_e) by the trapezoid.
         Horizontal velocity is reset to the GNSS one at t_e (plus the inertial change since);
-        position is blended with gain min(1, 2T/tau_pos); vertical velocity, which GNSS does
-        not give, comes from the height residual (second-order complementary loop).
+        position is blended with gain alpha = min(1, 2T/tau_pos); vertical velocity, which GNSS
+        does not give, comes from the height residual (second-order complementary loop).
         """
         if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or self._t_s is None:
             return
@@ -516,7 +527,10 @@ class ObserverEngine:
         if v_ref_ne is not None:
             v[0] += v_ref_ne[0] - v_e[0]
             v[1] += v_ref_ne[1] - v_e[1]
-        v[2] += interval_s / tau**2 * dp[2]
+        if interval_s > 0.0:
+            # alpha-beta form of the critically damped loop (2/tau, 1/tau^2): beta = alpha^2/4
+            # stays stable with alpha capped at 1 whatever the epoch interval (1 Hz included)
+            v[2] += 0.25 * k_p * k_p / interval_s * dp[2]
         self._t_pos_epoch_s = t_e
 
     def _mark_bad(self, t: float) -> None:

@@ -33,8 +33,8 @@ class ObserverConfig:
     # --- GNSS timing ---
     epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock
     receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
-    gnss_timeout_s: float = 1.0  # no usable velocity for this long (receive time): COASTING
-    max_gnss_interval_s: float = 0.5  # consecutive epochs further apart are not differenced
+    gnss_timeout_s: float = 1.5  # no usable velocity for this long (receive time): COASTING
+    max_gnss_interval_s: float = 1.2  # epochs further apart are not differenced (1 Hz fits)
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
     gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma (RTK carrier-phase Doppler)
 
@@ -44,7 +44,10 @@ class ObserverConfig:
     # --- learning gates ---
     learning_fix_qualities: tuple[int, ...] = (2, 4, 5)  # GGA DGNSS, RTK fixed, RTK float
     navigating_fix_qualities: tuple[int, ...] = (4,)  # other usable qualities: DEGRADED
-    e_gate_mps2: float = 1.5  # |e| above this is a GNSS glitch (noise ~0.3 at 10 Hz)
+    # a GNSS glitch: the velocity change over an epoch interval T disagrees with the
+    # platform's by more than glitch_sigma of the white GNSS velocity noise plus e_gate T
+    glitch_sigma: float = 5.0  # Rayleigh tail exp(-25/2): 4e-6 false alarms per epoch
+    e_gate_mps2: float = 1.0  # specific-force mismatch beyond noise: tilt at start, vibration
     learning_holdoff_s: float = 8.0  # learning stays frozen this long after any gate (2 tau)
     stationary_speed_mps: float = 0.1  # reference-point speed below this ...
     stationary_rate_dps: float = 1.0  # ... and |w_b| below this: stationary

@@ -19,7 +19,10 @@ Reversing needs no special case: COG is the direction of the antenna velocity.
 Receive times model the serial link: the epoch's sentences become ready ``latency_s`` plus a
 uniform jitter in [0, ``latency_jitter_s``) after the epoch, then leave the UART at ``baud``
 8N1 (10 bits a byte) one after another; a line's host time is when its LF has arrived (queued
-behind the previous epoch if the link is still busy), plus ``host_clock_offset_s``.
+behind the previous epoch if the link is still busy). The host clock is the truth's (and the
+IMU log's); ``host_clock_offset_s`` is how far it is ahead of the receiver's UTC, so a
+non-zero value is a host whose clock is not synchronised: the sentences' UTC times then
+differ from the log stamps by the offset, as on an ECU without NTP or PPS.
 """
 
 from __future__ import annotations
@@ -101,7 +104,7 @@ class GnssReceiverConfig:
     latency_s: float = 0.040
     latency_jitter_s: float = 0.003
     baud: int = 115200
-    host_clock_offset_s: float = 0.0  # host clock minus UTC
+    host_clock_offset_s: float = 0.0  # host clock minus UTC: the sentences' times are shifted
     geoid_separation_m: float = 47.0  # GGA field: ellipsoidal height minus MSL altitude
     num_sats: int = 22  # mean number of satellites used
     hdop: float = 0.7  # HDOP with num_sats satellites
@@ -177,16 +180,17 @@ def simulate_receiver(truth: Truth, config: GnssReceiverConfig | None = None) ->
     """Run the receiver over the truth's time span; epochs outside it are not produced."""
     cfg = config or GnssReceiverConfig()
     rng = np.random.default_rng(cfg.seed)
-    t0 = float(truth.t[0])
+    t0, offset = float(truth.t[0]), cfg.host_clock_offset_s
     k = np.arange(
-        math.ceil(t0 * 100.0 / cfg.period_cs - 1e-9),
-        math.floor(float(truth.t[-1]) * 100.0 / cfg.period_cs + 1e-9) + 1,
+        math.ceil((t0 - offset) * 100.0 / cfg.period_cs - 1e-9),
+        math.floor((float(truth.t[-1]) - offset) * 100.0 / cfg.period_cs + 1e-9) + 1,
         dtype=np.int64,
     )
     t_cs = k * cfg.period_cs
     t_utc = t_cs / 100.0
+    t_host = t_utc + offset  # the epochs on the host clock, which the truth is on
     n = len(t_utc)
-    t_rel, truth_rel = t_utc - t0, truth.t - t0
+    t_rel, truth_rel = t_host - t0, truth.t - t0
 
     def interp(column: Array) -> Array:
         return np.stack([np.interp(t_rel, truth_rel, c) for c in column.T], axis=-1)
@@ -238,7 +242,7 @@ def simulate_receiver(truth: Truth, config: GnssReceiverConfig | None = None) ->
     bodies, line_epoch = _format_epochs(
         cfg, t_cs, quality, lla, sog, cog, heading, sats, hdop, age, sigma_h, sigma_v
     )
-    host_t = _receive_times(cfg, rng, t_utc, bodies, line_epoch)
+    host_t = _receive_times(cfg, rng, t_host, bodies, line_epoch)
     lines = [NmeaLine(float(t), s) for t, s in zip(host_t, bodies, strict=True)]
     return ReceiverOutput(lines, t_utc, quality, lla, vel_ne, heading)
 
@@ -349,21 +353,22 @@ def _ddmm(deg: Array, deg_digits: int) -> list[tuple[str, bool]]:
 def _receive_times(
     cfg: GnssReceiverConfig,
     rng: np.random.Generator,
-    t_utc: Array,
+    t_host: Array,
     sentences: list[str],
     line_epoch: list[int],
 ) -> Array:
-    """Host time at which each line's LF arrives, through a FIFO serial link."""
+    """Host time at which each line's LF arrives, through a FIFO serial link; ``t_host``: the
+    epochs on the host clock."""
     byte_s = BITS_PER_BYTE_8N1 / cfg.baud
     line_s = np.array([len(s) + 2 for s in sentences], dtype=float) * byte_s  # + CRLF
     epoch_of_line = np.asarray(line_epoch, dtype=np.int64)
-    epoch_s = np.bincount(epoch_of_line, weights=line_s, minlength=len(t_utc)).astype(np.float64)
-    ready = t_utc + cfg.latency_s + cfg.latency_jitter_s * rng.random(len(t_utc))
+    epoch_s = np.bincount(epoch_of_line, weights=line_s, minlength=len(t_host)).astype(np.float64)
+    ready = t_host + cfg.latency_s + cfg.latency_jitter_s * rng.random(len(t_host))
     # FIFO: end_k = max(ready_k, end_{k-1}) + epoch_s_k, in closed form with a running max.
     busy = np.cumsum(epoch_s)
     end = busy + np.maximum.accumulate(ready - (busy - epoch_s))
     start = end - epoch_s
     line_end = np.cumsum(line_s)
     epoch_begin = (busy - epoch_s)[epoch_of_line]
-    host_t: Array = start[epoch_of_line] + (line_end - epoch_begin) + cfg.host_clock_offset_s
+    host_t: Array = start[epoch_of_line] + (line_end - epoch_begin)
     return host_t

@@ -5,6 +5,7 @@ from dataclasses import replace
 from typing import Any
 
 import numpy as np
+import pytest
 
 from drivers.samples import FixQuality, GnssFix
 from gateway.engine_observer import ObserverEngine
@@ -148,6 +149,26 @@ def test_epochs_on_utc_or_the_configured_latency_beat_ignoring_the_latency() -> 
     # auto: UTC on a synchronised host whatever latency is configured, else the latency
     assert tilt_rms_deg(fixes, receiver_latency_s=0.2) == synced
     assert tilt_rms_deg(free_clock, receiver_latency_s=0.05) == handled
+
+
+@pytest.mark.parametrize("rate_hz", [1.0, 5.0, 10.0, 20.0])
+def test_receivers_of_1_to_20_hz_keep_tilt_and_position(rate_hz: float) -> None:
+    """The glitch gate and the loops follow the epoch interval: a 20 Hz receiver's noisier
+    velocity differences are not taken for glitches, a 1 Hz receiver still closes the tilt
+    loop, and the vertical position loop stays stable at 1 s."""
+    motion = Motion([*START, *HEADLANDS * 2])
+    sigma_v = 0.02
+    fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, rate_hz=rate_hz, vel_noise_mps=sigma_v)
+    out = _trace(motion, ObserverConfig(antenna_lever_arm_m=LEVER), fixes=fixes)
+    late = [(t, s) for t, s in out if t > 30.0]
+    tilt = [math.hypot(s.roll_rad or 0.0, s.pitch_rad or 0.0) for _, s in late]
+    # the tilt sees one velocity error per axis, sigma_v / (g tau) (0.029 deg): 0.041 deg in 2-D
+    floor_rad = math.sqrt(2.0) * sigma_v / (9.81 * 4.0)
+    assert math.sqrt(np.mean(np.square(tilt))) < 1.5 * floor_rad
+    assert all(s.mode is Mode.NAVIGATING for _, s in late)  # no coasting between epochs
+    pos_err = [_pos_err_m(motion, t, s) for t, s in late]
+    # propagated over up to one interval on a velocity with 2 cm/s noise: 1.8 cm at 1 Hz
+    assert math.sqrt(np.mean(np.square(pos_err))) < 0.03 and max(pos_err) < 0.2
 
 
 def test_switching_bias_estimation_off_is_the_baseline() -> None:
