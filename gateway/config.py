@@ -85,9 +85,8 @@ class GnssSection:
     epoch_time: EpochTime = field(
         default=EpochTime.AUTO,
         metadata=_doc(
-            "utc: the host clock follows UTC (PPS/NTP), epochs use NMEA time; receive: it runs"
-            " free, epochs are the least receive delay minus receiver_latency_s; auto: utc"
-            " when the receive delays fit a synchronised clock (0-0.5 s), else receive"
+            "auto: NMEA UTC when the receive delays say the host clock follows UTC"
+            " (0-0.5 s), else receive; utc (PPS/NTP host) or receive (free clock) to force"
         ),
     )
     receiver_latency_s: float = field(

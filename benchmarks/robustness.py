@@ -1,0 +1,129 @@
+"""Robustness: the gateway on variants of the field run, judged through its SPEC interfaces.
+
+Run:  .venv/bin/python benchmarks/robustness.py                     # every variant, seed 1
+      .venv/bin/python benchmarks/robustness.py --variants default gnss-1hz --seeds 1 2
+
+Each variant changes one thing a user's setup may differ in (receiver rate, latency, clock,
+sentences, IMU mounting, IMU grade, antenna position, output rate of the IMU) against the
+`field` preset. The run is simulated, then replayed exactly as ``navgw replay`` does, with a
+config holding only the SPEC 5 [vehicle] keys (everything else at its default), and the
+output frames are decoded with the independent ``nmea2000`` package and compared with the
+truth after 10 minutes: roll, pitch, yaw RMS (127257) and the reference point's horizontal
+RMS and max (129025). Parameters are the product defaults; nothing here is tuned per variant.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import sys
+import tempfile
+from collections.abc import Sequence
+from concurrent.futures import ProcessPoolExecutor
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from gateway.config import Engine, GatewayConfig, VehicleSection
+from gateway.replay import replay
+from sim_bus.scenarios import generate, scenario_from_toml
+from sim_bus.truth import Truth
+from tests.n2k_check import attitude_errors_deg, decode_log, position_errors_m
+
+#: Variant name -> (what it changes, scenario overrides on the field preset).
+VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
+    "default": ("field preset: 10 Hz, ~68 ms to the last sentence, UTC host clock", {}),
+    "gnss-1hz": ("1 Hz receiver", {"gnss": {"rate_hz": 1.0}}),
+    "gnss-5hz": ("5 Hz receiver", {"gnss": {"rate_hz": 5.0}}),
+    "gnss-20hz": ("20 Hz receiver", {"gnss": {"rate_hz": 20.0}}),
+    "latency-150ms": ("150 ms receiver latency", {"gnss": {"latency_s": 0.15}}),
+    "host-clock-free": (
+        "host clock 30 s off UTC (no NTP/PPS): epochs from receive time - default 50 ms",
+        {"gnss": {"host_clock_offset_s": 30.0}},
+    ),
+    "gga-rmc-only": (
+        "GP talker, GGA + RMC only (no VTG, GST, ZDA)",
+        {"gnss": {"talker": "GP", "vtg": False, "gst": False, "zda": False}},
+    ),
+    "hdt": ("dual-antenna heading (HDT)", {"gnss": {"hdt": True}}),
+    "imu-mounted-rotated": (
+        "IMU upside down and turned 90 deg (config gives the mounting)",
+        {"imu": {"imu_mounting_rpy_deg": [180.0, 0.0, 90.0]}},
+    ),
+    "imu-102hz": ("IMU DEC = 3: 102.4 Hz", {"imu": {"dec": 3}}),
+    "imu-noise-x2": (
+        "IMU twice as noisy: ARW, VRW, in-run and turn-on biases",
+        {
+            "imu": {
+                "gyro_arw_rad_per_sqrt_s": 2 * 2.0 * math.pi / 180 / 60,
+                "accel_vrw_mps_per_sqrt_s": 2 * 0.12 / 60,
+                "gyro_bias_stability_rps": 2 * 0.007 * math.pi / 180,
+                "accel_bias_stability_mps2": 2 * 0.1e-3 * 9.80665,
+                "gyro_turn_on_sigma_rps": 2 * 0.1 * math.pi / 180,
+                "accel_turn_on_sigma_mps2": 2 * 5e-3 * 9.80665,
+            }
+        },
+    ),
+    "antenna-offset": (
+        "antenna 0.8 m right, 1.5 m forward, 3.5 m up",
+        {"vehicle": {"antenna_lever_arm_m": [1.5, 0.8, -3.5]}},
+    ),
+}
+ENGINES = (Engine.OBSERVER, Engine.EKF)
+AFTER_S = 600.0  # the targets' "after 10 minutes"
+
+
+def run_variant(name: str, seed: int) -> dict[str, tuple[float, ...]]:
+    """(roll, pitch, yaw RMS deg, ref RMS cm, ref max cm) of each engine on one variant."""
+    scenario = scenario_from_toml({"base": "field", "name": name, **VARIANTS[name][1]})
+    out: dict[str, tuple[float, ...]] = {}
+    with tempfile.TemporaryDirectory(prefix="navgw-rob-") as tmp:
+        run = generate(scenario, tmp, seed)
+        truth = Truth.load(run.truth_file)
+        vehicle = VehicleSection(
+            antenna_lever_arm_m=tuple(float(v) for v in truth.antenna_lever_arm_m),  # type: ignore[arg-type]
+            imu_lever_arm_m=tuple(float(v) for v in truth.imu_lever_arm_m),  # type: ignore[arg-type]
+            imu_mounting_rpy_deg=scenario.imu.imu_mounting_rpy_deg,
+        )
+        for engine in ENGINES:
+            frames = Path(tmp) / f"{engine.value}.log"
+            replay(
+                run.imu_log,
+                run.gnss_log,
+                frames,
+                GatewayConfig(vehicle=vehicle).with_engine(engine),
+            )
+            decoded = decode_log(frames)
+            att = attitude_errors_deg(decoded, truth, AFTER_S)
+            pos = position_errors_m(decoded, truth, AFTER_S) * 100.0
+            rms = np.sqrt(np.mean(np.square(att), axis=0))
+            out[engine.value] = (*rms, math.sqrt(float(np.mean(pos**2))), float(np.max(pos)))
+    return out
+
+
+def main(argv: Sequence[str] | None = None) -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
+    parser.add_argument("--seeds", nargs="+", type=int, default=[1])
+    parser.add_argument("--jobs", type=int, default=2, help="worker processes")
+    args = parser.parse_args(argv)
+    jobs = [(v, s) for v in args.variants for s in args.seeds]
+    columns = ["roll rms", "pitch rms", "yaw rms", "ref rms cm", "ref max cm"]
+    print("| variant | what changes | seed | engine | " + " | ".join(columns) + " |")
+    print("|---" * (4 + len(columns)) + "|")
+    names, seeds = [v for v, _ in jobs], [s for _, s in jobs]
+    with ProcessPoolExecutor(args.jobs) as pool:
+        for (name, seed), result in zip(jobs, pool.map(run_variant, names, seeds), strict=True):
+            for engine, (roll, pitch, yaw, ref, ref_max) in result.items():
+                print(
+                    f"| {name} | {VARIANTS[name][0]} | {seed} | {engine} | {roll:.3f} | "
+                    f"{pitch:.3f} | {yaw:.3f} | {ref:.2f} | {ref_max:.2f} |",
+                    flush=True,
+                )
+
+
+if __name__ == "__main__":
+    main()
