@@ -107,6 +107,7 @@ class ObserverEngine:
         self._e_var_mps4 = 0.0  # running variance of one horizontal e component
         self._epoch_interval_s = 0.1  # last closed-loop GNSS interval
         self._t_last_epoch_s: float | None = None
+        self._control_until_s: float | None = None  # IMU time the epoch's control rates end
         # IMU health
         self._imu_alarm = False
         self._bad_since_s: float | None = None  # start of a run of invalid/saturated samples
@@ -136,6 +137,8 @@ class ObserverEngine:
         if obs is None:
             self._align_tilt(t, w, f)
             return
+        if self._control_until_s is not None and t > self._control_until_s:
+            self._end_control()
         fpn, fpe, fpd = obs.propagate((w[0], w[1], w[2]), (f[0], f[1], f[2]), dt)
         self._propagate_navigation(fpn, fpe, fpd, dt)
         c = obs.c_bp9
@@ -259,6 +262,7 @@ class ObserverEngine:
             speed_ref < self.cfg.stationary_speed_mps
             and float(np.linalg.norm(w_still)) < self.cfg.stationary_rate_dps * DEG
         )
+        self._hold_control(t_e)
         glitch = self._correct_tilt(t_e, float(v_imu[0]), float(v_imu[1]), row)
         # Learning goes on at rest: the tilt loop is closed there too (v = 0 is the best
         # velocity reference there is), the control rate still equals the x/y gyro bias
@@ -279,6 +283,28 @@ class ObserverEngine:
         yaw_rate = float(c_bn[2] @ w_still)
         self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn)
         self._correct_position(fix, t_e, row, c_e, (float(v_ref[0]), float(v_ref[1])))
+
+    def _hold_control(self, t_e: float) -> None:
+        """The control rates this epoch sets last one epoch period (time since the previous
+        epoch), as eq. (3)'s discrete form and the heading gain assume; then both loops open
+        until the next epoch. Held until the next epoch instead, the last rates before an
+        outage ran on until the GNSS timeout: 15 periods of one noisy correction, 1.2 deg of
+        roll and pitch at the start of a 20 s outage after a DGNSS spell."""
+        last = self._t_last_epoch_s
+        period_s = t_e - last if last is not None else 0.0
+        if not 0.0 < period_s <= self.cfg.max_gnss_interval_s:
+            period_s = self._epoch_interval_s
+        assert self._t_s is not None
+        self._control_until_s = self._t_s + period_s
+
+    def _end_control(self) -> None:
+        """The epoch's period is over and no new epoch has come: both loops open."""
+        obs = self._observer
+        assert obs is not None
+        obs.open_tilt_loop()
+        obs.set_heading_rate(0.0)
+        self._w_pz_rps = 0.0
+        self._control_until_s = None
 
     def _zero_rate_update(self, t_e: float, row: _Row) -> None:
         """At rest, every ``gyro_z_window_s`` the mean body z rate is the residual z-gyro bias

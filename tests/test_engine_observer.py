@@ -82,6 +82,22 @@ def test_modes_from_start_through_an_outage() -> None:
     assert max(_pos_err_m(motion, t, s) for t, s in coasting) < 0.3
 
 
+def test_the_last_correction_before_an_outage_lasts_one_period() -> None:
+    """An epoch's control rates last one epoch period; before an outage they used to run on
+    to the GNSS timeout (15 periods): 0.1 m/s of velocity error on the last epoch (e = 1 m/s^2,
+    under the glitch gate) then tilted the platform by 2 deg instead of 0.15 deg."""
+    motion = Motion([*START, Segment(70.0)])
+    fixes = with_velocity_offset(
+        gnss_stream(motion, antenna_lever_arm_m=LEVER), 59.95, 60.05, (0.1, 0.0)
+    )
+    fixes = [f for f in fixes if not 60.05 <= motion_time(f.t) < 66.0]
+    out = _trace(motion, ObserverConfig(antenna_lever_arm_m=LEVER), fixes=fixes)
+    coasting = [s for t, s in out if 61.6 < t < 66.0]
+    assert coasting and all(s.mode is Mode.COASTING for s in coasting)
+    tilt = max(math.hypot(s.roll_rad or 0.0, s.pitch_rad or 0.0) for s in coasting)
+    assert math.degrees(tilt) < 0.3
+
+
 def test_float_fix_is_degraded() -> None:
     motion = Motion([*START, Segment(10.0)])
     fixes = gnss_stream(motion, quality=FixQuality.RTK_FLOAT)
