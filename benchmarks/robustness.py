@@ -67,6 +67,39 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
             }
         },
     ),
+    "imu-bias-x5": (
+        "turn-on biases 5x the datasheet-class sigma: 0.5 deg/s, 25 mg",
+        {
+            "imu": {
+                "gyro_turn_on_sigma_rps": 0.5 * math.pi / 180,
+                "accel_turn_on_sigma_mps2": 25e-3 * 9.80665,
+            }
+        },
+    ),
+    "fast-wide": (
+        "6 m/s work speed, 30 m swaths, 12 m turns at 3 m/s, north-east swaths",
+        {
+            "vehicle": {
+                "work_speeds_mps": [6.0],
+                "swath_spacing_m": 30.0,
+                "swath_length_m": 400.0,
+                "turn_radius_m": 12.0,
+                "turn_speed_mps": 3.0,
+                "swath_heading_deg": 45.0,
+            }
+        },
+    ),
+    "rough-slope": (
+        "3x the bumps, 6-9 deg side slopes, 4 deg along",
+        {
+            "vehicle": {
+                "bump_amplitude_m": 0.03,
+                "side_slope_min_deg": 6.0,
+                "side_slope_max_deg": 9.0,
+                "along_slope_deg": 4.0,
+            }
+        },
+    ),
     "antenna-offset": (
         "antenna 0.8 m right, 1.5 m forward, 3.5 m up",
         {"vehicle": {"antenna_lever_arm_m": [1.5, 0.8, -3.5]}},

@@ -96,7 +96,8 @@ class ObserverEngine:
         self._last_fix: GnssFix | None = None
         self._t_vel_rx_s: float | None = None  # receive time of the last usable velocity
         self._prev_epoch: tuple[float, float, float, _Row] | None = None  # t, vN, vE at IMU
-        self._stationary = False
+        self._stationary = False  # at rest and not turning (status bit, zero-rate update)
+        self._at_rest = False  # reference point not moving (turning on the spot allowed)
         self._zero_rate_start: _Row | None = None  # history row where the rest window began
         self._coasting = False  # GNSS velocity timed out: platform open loop
         # learning gates and convergence bookkeeping
@@ -258,10 +259,12 @@ class ObserverEngine:
         speed_ref = math.hypot(v_ref[0], v_ref[1])
         self._t_vel_rx_s = fix.t
         self._coasting = False
-        self._stationary = (
-            speed_ref < self.cfg.stationary_speed_mps
-            and float(np.linalg.norm(w_still)) < self.cfg.stationary_rate_dps * DEG
-        )
+        # at rest in translation: v = 0 is then a velocity reference in any azimuth, so the
+        # tilt loop and x/y gyro learning need no heading and no rate test (a large gyro bias
+        # must not keep the loop open: 0.5 deg/s per axis tilts 2 deg in 4 s open loop)
+        self._at_rest = speed_ref < self.cfg.stationary_speed_mps
+        rate_limit = self.cfg.stationary_rate_dps * DEG + 3.0 * self._sigma_bg_rps()
+        self._stationary = self._at_rest and float(np.linalg.norm(w_still)) < rate_limit
         self._hold_control(t_e)
         glitch = self._correct_tilt(t_e, float(v_imu[0]), float(v_imu[1]), row)
         # Learning goes on at rest: the tilt loop is closed there too (v = 0 is the best
@@ -273,7 +276,7 @@ class ObserverEngine:
             ok=(
                 int(fix.quality) in self.cfg.learning_fix_qualities
                 and not glitch
-                and (self._heading_aligned or self._stationary)
+                and (self._heading_aligned or self._at_rest)
                 and not self._imu_upset
             ),
         )
@@ -372,9 +375,9 @@ class ObserverEngine:
         horizontal part). The velocity is moved from the antenna to the IMU with both lever
         arms first, so that it describes the point whose specific force is measured. Before the
         heading is known the horizontal f_p is in an arbitrary azimuth, so the loop is closed
-        only while stationary. A velocity mismatch |e| T beyond :meth:`_glitch_dv_mps` is a
-        glitch: the loop stays open for the interval (no attitude kick) and learning is gated
-        (hold-off after it).
+        only while at rest (v = 0 in any azimuth). A velocity mismatch |e| T beyond
+        :meth:`_glitch_dv_mps` is a glitch: the loop stays open for the interval (no attitude
+        kick) and learning is gated (hold-off after it).
 
         A rejected epoch is skipped, not made the base of the next difference: the next e
         spans the last accepted epoch to it, and its control rate, held for one epoch period,
@@ -405,7 +408,7 @@ class ObserverEngine:
             self._set_tilt_open()
             return True
         self._prev_epoch = current
-        if not self._heading_aligned and not self._stationary:
+        if not self._heading_aligned and not self._at_rest:
             self._set_tilt_open()
             return False
         obs.correct_tilt(e_n * scale, e_e * scale)
@@ -649,6 +652,11 @@ class ObserverEngine:
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
         )
 
+    def _sigma_bg_rps(self) -> float:
+        """x/y gyro bias 1-sigma: the turn-on sigma decaying with the learning exponent."""
+        sigma0 = self.cfg.gyro_bias_sigma0_dps * DEG
+        return max(sigma0 * math.exp(-self._g_learn), GYRO_BIAS_FLOOR_RPS)
+
     def _sigma_tilt_rad(self, coasting_s: float) -> float:
         """Roll/pitch 1-sigma from the observer's physics (seed 000, eqs. 3, 8, 10).
 
@@ -665,9 +673,7 @@ class ObserverEngine:
         """
         cfg = self.cfg
         g = GRAVITY_MPS2
-        sigma_bg = max(
-            cfg.gyro_bias_sigma0_dps * DEG * math.exp(-self._g_learn), GYRO_BIAS_FLOOR_RPS
-        )
+        sigma_bg = self._sigma_bg_rps()
         sigma_ba = max(cfg.accel_bias_sigma0_mps2 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2)
         arw = cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
         sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s

@@ -98,6 +98,27 @@ def test_the_last_correction_before_an_outage_lasts_one_period() -> None:
     assert math.degrees(tilt) < 0.3
 
 
+def test_a_large_gyro_bias_is_learned_at_rest_before_the_heading_is_known() -> None:
+    """0.76/0.48/-0.82 deg/s (7 sigma of the turn-on spread, |w| 1.2 deg/s at rest): zero
+    velocity levels the platform in any azimuth, so the tilt loop closes and the x/y bias is
+    learned during the first rest. Gating the loop on the bias-corrected rate kept it open and
+    the platform tumbled (roll 50 deg) while the EKF was fine."""
+    bias = np.radians([0.76, 0.48, -0.82])
+    motion = Motion([Segment(60.0), Segment(3.0, accel_mps2=1.0), *HEADLANDS])
+    out = _trace(motion, ObserverConfig(antenna_lever_arm_m=LEVER), bias_g_rps=bias)
+    rest = [s for t, s in out if 5.0 < t < 60.0]
+    assert (
+        max(math.degrees(max(abs(s.roll_rad or 0.0), abs(s.pitch_rad or 0.0))) for s in rest) < 4.0
+    )
+    end = _at(out, 59.0)
+    assert end.bias_g_rps is not None
+    # learning at rest: tau_g = 40 s, ~55 s of it after the hold-off
+    assert np.all(np.abs(np.array(end.bias_g_rps[:2]) - bias[:2]) < 0.5 * np.abs(bias[:2]))
+    assert abs(end.bias_g_rps[2] - bias[2]) < math.radians(0.05)  # zero-rate update at rest
+    late = [s for t, s in out if t > motion.duration_s - 20.0]
+    assert max(math.degrees(math.hypot(s.roll_rad or 0.0, s.pitch_rad or 0.0)) for s in late) < 1.0
+
+
 def test_float_fix_is_degraded() -> None:
     motion = Motion([*START, Segment(10.0)])
     fixes = gnss_stream(motion, quality=FixQuality.RTK_FLOAT)
