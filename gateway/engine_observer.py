@@ -109,6 +109,7 @@ class ObserverEngine:
         self._epoch_interval_s = 0.1  # last closed-loop GNSS interval
         self._t_last_epoch_s: float | None = None
         self._control_until_s: float | None = None  # IMU time the epoch's control rates end
+        self._rejecting_since_s: float | None = None  # epoch time glitches began, if ongoing
         # IMU health
         self._imu_alarm = False
         self._bad_since_s: float | None = None  # start of a run of invalid/saturated samples
@@ -377,7 +378,10 @@ class ObserverEngine:
         heading is known the horizontal f_p is in an arbitrary azimuth, so the loop is closed
         only while at rest (v = 0 in any azimuth). A velocity mismatch |e| T beyond
         :meth:`_glitch_dv_mps` is a glitch: the loop stays open for the interval (no attitude
-        kick) and learning is gated (hold-off after it).
+        kick) and learning is gated (hold-off after it). Glitches that last
+        ``glitch_persist_s`` are the platform's error, not the GNSS's (a velocity step cancels
+        in the differences after one new base): e is then used again, clipped to the gate, so
+        a platform tilted beyond the gate recovers.
 
         A rejected epoch is skipped, not made the base of the next difference: the next e
         spans the last accepted epoch to it, and its control rate, held for one epoch period,
@@ -404,9 +408,18 @@ class ObserverEngine:
         last = self._t_last_epoch_s
         period_s = interval_s if last is None else min(interval_s, max(t_e - last, 1e-3))
         scale = interval_s / period_s
-        if math.hypot(e_n, e_e) * interval_s > self._glitch_dv_mps(period_s):
+        mismatch_mps, gate_mps = math.hypot(e_n, e_e) * interval_s, self._glitch_dv_mps(period_s)
+        glitch = mismatch_mps > gate_mps
+        if not glitch:
+            self._rejecting_since_s = None
+        elif self._rejecting_since_s is None or t_e - self._rejecting_since_s < (
+            self.cfg.glitch_persist_s
+        ):
+            self._rejecting_since_s = self._rejecting_since_s or t_e
             self._set_tilt_open()
             return True
+        else:  # rejected this long: the platform is off, not the GNSS; correct, clipped
+            e_n, e_e = e_n * gate_mps / mismatch_mps, e_e * gate_mps / mismatch_mps
         self._prev_epoch = current
         if not self._heading_aligned and not self._at_rest:
             self._set_tilt_open()
@@ -415,7 +428,7 @@ class ObserverEngine:
         self._epoch_interval_s = interval_s
         a = min(1.0, interval_s / E_NOISE_TAU_S)
         self._e_var_mps4 += a * (0.5 * (e_n * e_n + e_e * e_e) - self._e_var_mps4)
-        return False
+        return glitch
 
     def _glitch_dv_mps(self, period_s: float) -> float:
         """Largest velocity-change mismatch over one epoch period that is not a glitch: white

@@ -48,6 +48,7 @@ class ObserverConfig:
     # platform's by more than glitch_sigma of the white GNSS velocity noise plus e_gate T
     glitch_sigma: float = 5.0  # Rayleigh tail exp(-25/2): 4e-6 false alarms per epoch
     e_gate_mps2: float = 1.0  # specific-force mismatch beyond noise: tilt at start, vibration
+    glitch_persist_s: float = 5.0  # glitches this long mean a tilted platform: e used, clipped
     learning_holdoff_s: float = 8.0  # learning stays frozen this long after any gate (2 tau)
     stationary_speed_mps: float = 0.1  # reference-point speed below this ...
     stationary_rate_dps: float = 1.0  # ... and |w_b| below this: stationary

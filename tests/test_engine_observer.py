@@ -119,6 +119,34 @@ def test_a_large_gyro_bias_is_learned_at_rest_before_the_heading_is_known() -> N
     assert max(math.degrees(math.hypot(s.roll_rad or 0.0, s.pitch_rad or 0.0)) for s in late) < 1.0
 
 
+def test_a_platform_tilted_beyond_the_glitch_gate_recovers() -> None:
+    """A 3 s fault of 15 deg/s on the x gyro while driving straight tilts the platform by
+    45 deg, beyond what the glitch gate lets through (e ~ g theta, ~14 deg at 10 Hz): every
+    epoch after it looks like a glitch, and the platform stayed at 45 deg, NAVIGATING. After
+    ``glitch_persist_s`` the clipped e levels it again."""
+    motion = Motion([*START, Segment(120.0)])
+    imu = imu_stream(motion)
+    fault = math.radians(15.0)
+    samples = [
+        replace(s, w_ib_b=s.w_ib_b + np.array([fault, 0.0, 0.0]))
+        if 40.0 <= motion_time(s.t) < 43.0
+        else s
+        for s in imu
+    ]
+    engine = ObserverEngine(ObserverConfig(antenna_lever_arm_m=LEVER))
+    out: list[tuple[float, Solution]] = []
+    run(
+        engine,
+        samples,
+        gnss_stream(motion, antenna_lever_arm_m=LEVER),
+        every=41,
+        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
+    )
+    assert math.degrees(abs(_at(out, 44.5).roll_rad or 0.0)) > 20.0  # beyond the gate
+    late = [abs(s.roll_rad or 0.0) for t, s in out if t > 100.0]
+    assert math.degrees(max(late)) < 0.2
+
+
 def test_float_fix_is_degraded() -> None:
     motion = Motion([*START, Segment(10.0)])
     fixes = gnss_stream(motion, quality=FixQuality.RTK_FLOAT)
