@@ -82,10 +82,10 @@ def test_modes_from_start_through_an_outage() -> None:
     assert max(_pos_err_m(motion, t, s) for t, s in coasting) < 0.3
 
 
-def test_the_last_correction_before_an_outage_lasts_one_period() -> None:
-    """An epoch's control rates last one epoch period; before an outage they used to run on
-    to the GNSS timeout (15 periods): 0.1 m/s of velocity error on the last epoch (e = 1 m/s^2,
-    under the glitch gate) then tilted the platform by 2 deg instead of 0.15 deg."""
+def test_the_last_correction_before_an_outage_ends_with_its_period() -> None:
+    """An epoch's control rates last at most 1.5 epoch periods; before an outage they used to
+    run on to the GNSS timeout (15 periods): 0.1 m/s of velocity error on the last epoch
+    (e = 1 m/s^2, under the glitch gate) then tilted the platform by 2.5 deg, not 0.2 deg."""
     motion = Motion([*START, Segment(70.0)])
     fixes = with_velocity_offset(
         gnss_stream(motion, antenna_lever_arm_m=LEVER), 59.95, 60.05, (0.1, 0.0)
