@@ -12,8 +12,8 @@ Design choices (ALGORITHMS.md 3 leaves them to the implementer):
   through the lever arms (measurement models, read-out), so the mechanisation needs no
   lever-arm accelerations.
 - Late epochs: a fix describes the epoch ``t_e`` (:mod:`gateway.epoch_clock`) and arrives
-  later. The innovation and H are
-  computed against the INS state interpolated from the history at ``t_e``; the correction is
+  later. The innovation and H are computed against the INS state interpolated from the
+  history at ``t_e``; the correction is
   applied to the current state (and to the history, so that the next epoch is not double
   counted). Approximation: the error state is taken as constant over the delay (< 0.1 s:
   dv * delay is ~1 mm).

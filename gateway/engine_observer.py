@@ -390,8 +390,7 @@ class ObserverEngine:
         spans the last accepted epoch to it, and its control rate, held for one epoch period,
         is scaled by interval / period. The gate is that of one period however long the span:
         a velocity step is rejected until the span exceeds ``max_gnss_interval_s`` and a new
-        base starts after it. So the
-        applied tilt corrections still telescope to
+        base starts after it. So the applied tilt corrections still telescope to
         (v_last - v_first) / (g tau), one velocity error, however many epochs are rejected.
         Differencing against a rejected epoch instead made noisy spells (single-point GNSS,
         8 cm/s: e ~1.1 m/s^2 against a 1.5 m/s^2 gate) a random walk of 1-2 deg in tilt.
@@ -415,13 +414,13 @@ class ObserverEngine:
         glitch = mismatch_mps > gate_mps
         if not glitch:
             self._rejecting_since_s = None
-        elif self._rejecting_since_s is None or t_e - self._rejecting_since_s < (
-            self.cfg.glitch_persist_s
-        ):
-            self._rejecting_since_s = self._rejecting_since_s or t_e
-            self._set_tilt_open()
-            return True
-        else:  # rejected this long: the platform is off, not the GNSS; correct, clipped
+        else:
+            if self._rejecting_since_s is None:
+                self._rejecting_since_s = t_e
+            if t_e - self._rejecting_since_s < self.cfg.glitch_persist_s:
+                self._set_tilt_open()
+                return True
+            # rejected this long: the platform is off, not the GNSS; correct, clipped
             e_n, e_e = e_n * gate_mps / mismatch_mps, e_e * gate_mps / mismatch_mps
         self._prev_epoch = current
         if not self._heading_aligned and not self._at_rest:

@@ -54,17 +54,21 @@ class EpochClock:
     @property
     def host_follows_utc(self) -> bool | None:
         """Whether the host clock follows UTC, as the mode and the delays say (None: no date)."""
+        return self._follows_utc(min(self._delays) if self._delays else None)
+
+    def _follows_utc(self, least_delay_s: float | None) -> bool | None:
         if self.mode is not EpochTime.AUTO:
             return self.mode is EpochTime.UTC
-        if not self._delays:
+        if least_delay_s is None:
             return None
-        return SYNCED_DELAY_S[0] <= min(self._delays) <= SYNCED_DELAY_S[1]
+        return SYNCED_DELAY_S[0] <= least_delay_s <= SYNCED_DELAY_S[1]
 
     def epoch_time(self, fix: GnssFix) -> float:
         """Epoch instant of ``fix`` on the host clock, s."""
         if fix.t_utc is None:
             return fix.t - self.receiver_latency_s
         self._delays.append(fix.t - fix.t_utc)
-        if self.host_follows_utc:
+        least_s = min(self._delays)
+        if self._follows_utc(least_s):
             return fix.t_utc
-        return fix.t_utc + min(self._delays) - self.receiver_latency_s
+        return fix.t_utc + least_s - self.receiver_latency_s
