@@ -61,7 +61,7 @@ class EkfConfig:
     receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
     gnss_timeout_s: float = 1.5  # no accepted fix for this long (receive time): COASTING
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
-    history_s: float = 1.0  # INS history kept for late epochs; older epochs are dropped
+    history_s: float = 5.0  # INS history kept for late epochs (a loaded host delays them)
 
     # --- GNSS measurement noise ---
     gnss_sigma_scale: float = 5.0  # R = (scale * GST sigma)^2: RTK errors are time-correlated

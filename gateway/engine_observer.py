@@ -33,7 +33,7 @@ from gateway.estimator_config import GRAVITY_MPS2, ObserverConfig
 from gateway.geodesy import LocalFrame
 from gateway.heading import DEG, HeadingChannel
 from gateway.observer import TereshkovObserver
-from gateway.solution import Convergence, Mode, Solution, navigation_mode
+from gateway.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
 from gateway.terrain import reference_from_antenna, velocity_at
 
 #: History kept for late GNSS epochs, samples (5 s at 204.8 Hz): latency + one interval.
@@ -109,8 +109,11 @@ class ObserverEngine:
         self._epoch_interval_s = 0.1  # last closed-loop GNSS interval
         self._t_last_epoch_s: float | None = None
         self._control_until_s: float | None = None  # IMU time the epoch's control rates end
+        self._control_from_s = 0.0  # IMU time they began
+        self._control_period_s = 0.0  # the epoch period they are meant for
         self._rejecting_since_s: float | None = None  # epoch time glitches began, if ongoing
         # IMU health
+        self._timing = ImuTiming()
         self._imu_alarm = False
         self._bad_since_s: float | None = None  # start of a run of invalid/saturated samples
         self._bad_for_s = 0.0  # length of that run so far
@@ -120,7 +123,7 @@ class ObserverEngine:
     def imu(self, sample: ImuSample) -> None:
         """Propagate with one IMU sample (body frame, bias not yet removed)."""
         t = sample.t
-        dt = sample.dt
+        dt = self._timing.step(sample)
         w = sample.w_ib_b.tolist()
         f = sample.f_ib_b.tolist()
         if not (dt > 0.0 and math.isfinite(w[0] + w[1] + w[2] + f[0] + f[1] + f[2] + t)):
@@ -301,7 +304,17 @@ class ObserverEngine:
         period_s = t_e - last if last is not None else 0.0
         if not 0.0 < period_s <= self.cfg.max_gnss_interval_s:
             period_s = self._epoch_interval_s
-        assert self._t_s is not None
+        assert self._t_s is not None and self._observer is not None
+        if self._control_until_s is not None:
+            # The previous epoch's rates are still on: what is left of its period is applied
+            # at once, so each epoch corrects for its full period. Epochs that reach the
+            # engine in a burst (a loaded host) otherwise replaced each other's rates unused:
+            # one correction in twenty, and the tilt loop all but open.
+            left = self._control_period_s - (self._t_s - self._control_from_s)
+            if left > 0.0:
+                self._observer.apply_control(left)
+                self._hc_rad += self._w_pz_rps * left
+        self._control_from_s, self._control_period_s = self._t_s, period_s
         self._control_until_s = self._t_s + 1.5 * period_s
 
     def _end_control(self) -> None:
@@ -534,6 +547,13 @@ class ObserverEngine:
         Horizontal velocity is reset to the GNSS one at t_e (plus the inertial change since);
         position is blended with gain alpha = min(1, 2T/tau_pos); vertical velocity, which GNSS
         does not give, comes from the height residual (second-order complementary loop).
+
+        The corrections (dp, dv) are made at t_e and reach the current state through the age
+        a = now - t_e: p_now += dp + dv a, v_now += dv. Adding dv to the velocity without its
+        a dv to the position made the next epoch's back-propagated p(t_e) wrong by a dv, which
+        the vertical loop fed back with gain beta a per epoch: on a loaded host, where epochs
+        reach the engine seconds late and in bursts, the height diverged to 1e15 m and the
+        output position to the antipode of the field.
         """
         if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or self._t_s is None:
             return
@@ -566,15 +586,17 @@ class ObserverEngine:
         interval_s = min(t_e - (self._t_pos_epoch_s or t_e), self.cfg.max_gnss_interval_s)
         tau = self.cfg.pos_blend_tau_s
         k_p = min(1.0, 2.0 * interval_s / tau) if interval_s > 0.0 else 1.0
-        for i in range(3):
-            p[i] += k_p * dp[i]
+        dv = [0.0, 0.0, 0.0]
         if v_ref_ne is not None:
-            v[0] += v_ref_ne[0] - v_e[0]
-            v[1] += v_ref_ne[1] - v_e[1]
+            dv[0] = v_ref_ne[0] - v_e[0]
+            dv[1] = v_ref_ne[1] - v_e[1]
         if interval_s > 0.0:
             # alpha-beta form of the critically damped loop (2/tau, 1/tau^2): beta = alpha^2/4
             # stays stable with alpha capped at 1 whatever the epoch interval (1 Hz included)
-            v[2] += 0.25 * k_p * k_p / interval_s * dp[2]
+            dv[2] = 0.25 * k_p * k_p / interval_s * dp[2]
+        for i in range(3):
+            p[i] += k_p * dp[i] + dv[i] * age
+            v[i] += dv[i]
         self._t_pos_epoch_s = t_e
 
     def _mark_bad(self, t: float) -> None:
@@ -665,6 +687,7 @@ class ObserverEngine:
             imu_alarm=self._imu_alarm,
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
+            imu_gap=self._timing.degraded(),
         )
 
     def _sigma_bg_rps(self) -> float:

@@ -94,15 +94,7 @@ class TereshkovObserver:
         self._c = c
         c00, c01, c02, c10, c11, c12, c20, c21, c22 = c
         if self.learn:
-            # w_p seen in the body frame, horizontal control only: (C^T w_p)[x, y]
-            wpb_x = c00 * w_p[0] + c10 * w_p[1]
-            wpb_y = c01 * w_p[0] + c11 * w_p[1]
-            k_g = dt / self.tau_g_s
-            k_a = self.g_mps2 * wz * dt / self.omega_a_rps
-            bg[0] += k_g * wpb_x
-            bg[1] += k_g * wpb_y
-            ba[0] += k_a * wpb_x
-            ba[1] += k_a * wpb_y
+            self._learn(w_p, wz, dt)
         self.w_b_rps = (wx, wy, wz)
         self.f_b_mps2 = (fx, fy, fz)
         return (
@@ -111,7 +103,32 @@ class TereshkovObserver:
             c20 * fx + c21 * fy + c22 * fz,
         )
 
+    def _learn(self, w_p: Float3, wz: float, dt: float) -> None:
+        """Eqs. (11), (12) over ``dt``: w_p seen in the body frame, horizontal control only."""
+        c = self._c
+        wpb_x = c[0] * w_p[0] + c[3] * w_p[1]  # (C^T w_p)[x]
+        wpb_y = c[1] * w_p[0] + c[4] * w_p[1]  # (C^T w_p)[y]
+        k_g = dt / self.tau_g_s
+        k_a = self.g_mps2 * wz * dt / self.omega_a_rps
+        bg, ba = self._bg_rps, self._ba_mps2
+        bg[0] += k_g * wpb_x
+        bg[1] += k_g * wpb_y
+        ba[0] += k_a * wpb_x
+        ba[1] += k_a * wpb_y
+
     # ---------------------------------------------------------------------- corrections
+
+    def apply_control(self, duration_s: float) -> None:
+        """The current control rate over ``duration_s`` at once (C and, if learning, eqs.
+        11-12 with the last z rate): the rest of an epoch's correction when the next epoch
+        replaces its rate before its period is over."""
+        w_p = self._w_p_rps
+        if not (w_p[0] or w_p[1] or w_p[2]) or duration_s <= 0.0:
+            return
+        d = duration_s
+        self._c = dcm_mul(to_mat9(exp_so3((-w_p[0] * d, -w_p[1] * d, -w_p[2] * d))), self._c)
+        if self.learn:
+            self._learn(w_p, self.w_b_rps[2], d)
 
     def correct_tilt(self, e_n_mps2: float, e_e_mps2: float) -> None:
         """Eq. (3): horizontal control rate from e = f_gnss - mean(f_p), NED, m/s^2.
