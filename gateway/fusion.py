@@ -2,15 +2,21 @@
 
 Live service, replay and demo all drive this one class; only the sources of inputs and
 time differ. Per IMU sample: propagate the engine, advance the address claim, and when a
-PGN is due (and the address is held) encode the current solution. GNSS fixes go to the
-engine as they come; frames received from the ISOBUS go to the address claim.
+PGN is due (and the address is held) pass the current solution through the
+:class:`~gateway.output_guard.OutputGuard` and encode it. GNSS fixes go to the engine as they
+come; frames received from the ISOBUS go to the address claim.
+
+Frames come back as iterators that encode as they are taken: a caller that sends while it
+iterates puts the attitude on the bus first (see :meth:`OutputScheduler.frames`).
 """
 
 from __future__ import annotations
 
 import random
 from collections import deque
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
+from itertools import chain
 
 import can
 
@@ -20,6 +26,7 @@ from gateway.address_claim import AddressClaimer, Name
 from gateway.config import GatewayConfig
 from gateway.j1939 import DEFAULT_SOURCE_ADDRESS
 from gateway.n2k_encode import LoopStatus, OutputEncoder
+from gateway.output_guard import OutputGuard
 from gateway.scheduler import OutputScheduler
 from gateway.solution import Estimator, Solution
 
@@ -49,6 +56,8 @@ class FusionCore:
         self.engine = engine
         self.scheduler = scheduler
         self.claimer = claimer
+        self.guard = OutputGuard()
+        self.output: Solution | None = None  # the last solution sent, as the guard let it out
         self.stats = FusionStats()
         self._imu_counters = imu_counters or ImuCounters()
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
@@ -76,42 +85,43 @@ class FusionCore:
             imu_counters=imu_counters,
         )
 
-    def start(self, now: float) -> list[can.Message]:
+    def start(self, now: float) -> Iterator[can.Message]:
         """Begin the address claim; nothing else is sent until it completes."""
-        return self.claimer.start(now)
+        return self._counted(self.claimer.start(now))
 
-    def on_input(self, item: ImuSample | ImuAux | GnssFix) -> list[can.Message]:
+    def on_input(self, item: ImuSample | ImuAux | GnssFix) -> Iterator[can.Message]:
         """Dispatch one decoded input; returns the frames to send now."""
         if isinstance(item, ImuSample):
             return self.on_imu(item)
         if isinstance(item, GnssFix):
             self.stats.gnss_fixes += 1
             self.engine.gnss(item)
-            return []
-        self.stats.imu_aux += 1  # temperature, supply, DIAG_STAT: counted by the decoder
-        return []
+        else:
+            self.stats.imu_aux += 1  # temperature, supply, DIAG_STAT: counted by the decoder
+        return iter(())
 
-    def on_imu(self, sample: ImuSample) -> list[can.Message]:
+    def on_imu(self, sample: ImuSample) -> Iterator[can.Message]:
         """Propagate with one sample, then send whatever is due at its time."""
         self.stats.imu_samples += 1
         self.engine.imu(sample)
-        out = self.claimer.poll(sample.t)
+        out: Iterable[can.Message] = self.claimer.poll(sample.t)
         if self.claimer.claimed and self.scheduler.is_due(sample.t):
-            out += self.scheduler.frames(self.engine.solution(), self.loop_status(sample.t))
-        self.stats.frames_out += len(out)
-        return out
+            self.output = self.guard.check(self.engine.solution())
+            out = chain(out, self.scheduler.frames(self.output, self.loop_status(sample.t)))
+        return self._counted(out)
 
-    def on_bus_frame(self, msg: can.Message, now: float) -> list[can.Message]:
+    def on_bus_frame(self, msg: can.Message, now: float) -> Iterator[can.Message]:
         """A frame received from the ISOBUS (address claims and requests)."""
-        out = self.claimer.on_frame(msg, now)
-        self.stats.frames_out += len(out)
-        return out
+        return self._counted(self.claimer.on_frame(msg, now))
 
-    def poll(self, now: float) -> list[can.Message]:
+    def poll(self, now: float) -> Iterator[can.Message]:
         """Advance timers without an input (the live loop calls this when the IMU is silent)."""
-        out = self.claimer.poll(now)
-        self.stats.frames_out += len(out)
-        return out
+        return self._counted(self.claimer.poll(now))
+
+    def _counted(self, frames: Iterable[can.Message]) -> Iterator[can.Message]:
+        for msg in frames:
+            self.stats.frames_out += 1
+            yield msg
 
     def solution(self) -> Solution:
         """The engine's current solution."""

@@ -10,7 +10,7 @@ one SID, which advances once per instant that sends any SID-carrying PGN.
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 
 import can
 
@@ -85,16 +85,23 @@ class OutputScheduler:
         )
         return pgns
 
-    def frames(self, solution: Solution, loop: LoopStatus) -> list[can.Message]:
-        """Frames to send for ``solution`` (none before the address is claimed)."""
+    def frames(self, solution: Solution, loop: LoopStatus) -> Iterator[can.Message]:
+        """Frames to send for ``solution`` (none before the address is claimed).
+
+        Which PGNs are due and their SID are decided now; each frame is encoded as the caller
+        takes it, in the order of :data:`DEFAULT_RATES_HZ` (attitude and rate of turn first),
+        so a caller that sends as it iterates puts 127257 on the bus before the other PGNs of
+        the instant are even encoded.
+        """
         if not loop.address_claimed:
-            return []
+            return iter(())
         pgns = self.due(solution.t)
-        if not pgns:
-            return []
         if SID_PGNS.intersection(pgns):
             self._sid = (self._sid + 1) % SID_MODULO
-        frames: list[can.Message] = []
+        return self._encode(pgns, solution, loop, self._sid)
+
+    def _encode(
+        self, pgns: list[Pgn], solution: Solution, loop: LoopStatus, sid: int
+    ) -> Iterator[can.Message]:
         for pgn in pgns:
-            frames.extend(self._encoder.frames(pgn, solution, loop, self._sid))
-        return frames
+            yield from self._encoder.frames(pgn, solution, loop, sid)

@@ -79,7 +79,7 @@ def test_frames_of_one_instant_share_the_sid_which_advances_per_instant() -> Non
     scheduler = OutputScheduler()
     sids = []
     for s in solutions(1.0):
-        frames = scheduler.frames(s, LOOP)
+        frames = list(scheduler.frames(s, LOOP))
         sid_frames = [
             f
             for f in frames
