@@ -14,12 +14,13 @@ import pytest
 
 from drivers.canbus import FrameReader
 from drivers.errors import BusError
+from drivers.samples import ImuAux
 from gateway.canbus import BusPlan, EchoFilter, claim_filters, is_bus_down
 from gateway.cli import build_parser, main
 from gateway.config import GatewayConfig, ImuSection, example_toml
 from gateway.config_schema import ConfigError
 from gateway.j1939 import Pgn, can_id
-from gateway.service import BusFrame, GatewayService, Inbox
+from gateway.service import GatewayService, Inbox
 
 REPO = Path(__file__).resolve().parents[1]
 _channels = itertools.count()
@@ -92,8 +93,8 @@ def test_inbox_drops_the_oldest_input_and_counts() -> None:
     async def main() -> tuple[list[int], int]:
         inbox = Inbox(maxsize=3)
         for i in range(5):
-            inbox.offer(BusFrame(frame(i)))
-        return [(await inbox.get()).msg.data[0] for _ in range(3)], inbox.overloads  # type: ignore[union-attr]
+            inbox.offer(ImuAux(t=float(i), temp_c=25.0, supply_v=5.0, diag_stat=0, smpl_prd=1))
+        return [int((await inbox.get()).t) for _ in range(3)], inbox.overloads
 
     assert asyncio.run(main()) == ([2, 3, 4], 2)
 
