@@ -41,6 +41,7 @@ class FusionStats:
     imu_aux: int = 0
     gnss_fixes: int = 0
     frames_out: int = 0
+    imu_dropped: int = 0  # samples the live loop dropped before the engine (overload, stale)
 
 
 class FusionCore:
@@ -128,8 +129,9 @@ class FusionCore:
         return self.engine.solution()
 
     def loop_status(self, t: float) -> LoopStatus:
-        """What the loop adds to the solution: address, claim state, recent IMU losses."""
-        lost = self._imu_counters.lost
+        """What the loop adds to the solution: address, claim state, recent IMU losses (on
+        the bus, and dropped by the live loop)."""
+        lost = self._imu_counters.lost + self.stats.imu_dropped
         self._lost_marks.append((t, lost))
         while self._lost_marks and self._lost_marks[0][0] < t - LOST_WINDOW_S:
             self._lost_marks.popleft()

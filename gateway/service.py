@@ -8,9 +8,11 @@ Tasks of one event loop (no threads of ours; the estimator is fast and runs inli
   decodes IMU frames into the inbox, and hands address claims and requests (not our own
   echo) to the core at once: a lower NAME that takes our address must silence us as soon as
   its claim is read, not after the IMU backlog queued before it;
-- the GNSS task: fixes from :class:`~drivers.gnss_serial.GnssSerialReader` (which reconnects);
-- the core task: one bounded :class:`Inbox` in, inputs to the
-  :class:`~gateway.fusion.FusionCore` in time order (as replay merges them), output
+- the GNSS task: fixes from :class:`~drivers.gnss_serial.GnssSerialReader` (which reconnects)
+  into a queue of their own, where each waits until the IMU stream has reached its time: an
+  overloaded inbox drops IMU samples, never a fix;
+- the core task: IMU samples from one bounded :class:`Inbox`, each after the fixes older than
+  it, to the :class:`~gateway.fusion.FusionCore` (the order replay merges them in), output
   frames sent on the ISOBUS as they are encoded (the attitude first); a failed send is
   counted and logged at a limited rate, and an interface that is down makes the CAN task
   reopen the bus;
@@ -23,7 +25,8 @@ through one :class:`~gateway.timebase.TimeBase`: the identity live, a scaled clo
 Fairness: a task that finds its queue non-empty never awaits anything that suspends, so on a
 busy host the CAN and core tasks could take turns for seconds while the serial port's reader
 callback waited: GNSS epochs then reached the engines seconds late and in bursts (and the
-pty's receive stamps with them). Both yield to the loop every :data:`BATCH` items.
+pty's receive stamps with them). Both hand the loop on after :data:`TURN_S` of work
+(:class:`Turns`), whatever one item costs.
 """
 
 from __future__ import annotations
@@ -61,13 +64,17 @@ log = logging.getLogger(__name__)
 INBOX_SIZE = 1024  # inputs between the readers and the core (5 s of IMU samples at 204.8 Hz)
 TICK_S = 0.05  # claim-timer resolution while the IMU is silent, service seconds
 HOLD_MAX_S = 0.2  # a GNSS fix waits at most this long for the IMU to reach its time
+#: An IMU sample the core gets later than this after it was sampled is dropped (counted):
+#: what it would send is stale (5 s of backlog put the tractor 15 m back), and shedding it
+#: lets the core catch up; the engine bridges the gap and says DEGRADED if it is long.
+MAX_SAMPLE_AGE_S = 0.1
 STATUS_INTERVAL_S = 2.0  # sd_notify STATUS, wall seconds
 HEARTBEAT_MAX_S = 2.0  # the tick or the core stalled this long (wall): unhealthy
 LOG_INTERVAL_S = 10.0  # at most one warning per kind of trouble this often (wall)
 CLOCK_MISMATCH_S = 5.0  # frame timestamps this far from the host clock are not host time
-BATCH = 16  # items a task handles before it lets the loop run the others (about 1 ms)
+TURN_S = 0.001  # a task with work queued lets the loop run the others after this long
 
-Input = ImuSample | ImuAux | GnssFix
+Input = ImuSample | ImuAux  # what the inbox carries (fixes wait in a queue of their own)
 
 
 class LogLimiter:
@@ -90,6 +97,19 @@ class LogLimiter:
         self._last, self._suppressed = now, 0
 
 
+class Turns:
+    """Lets a task that always has work queued hand the loop on every :data:`TURN_S`."""
+
+    def __init__(self) -> None:
+        self._since = time.perf_counter()
+
+    async def take(self) -> None:
+        """Yield to the loop if this task has had it for TURN_S."""
+        if time.perf_counter() - self._since >= TURN_S:
+            await asyncio.sleep(0)
+            self._since = time.perf_counter()
+
+
 class Inbox:
     """Bounded queue from the readers to the core. When full, the OLDEST input is dropped:
     a navigation output must follow the newest data, and a stale backlog only adds latency.
@@ -101,14 +121,16 @@ class Inbox:
         self.overloads = 0  # inputs dropped
         self._log = LogLimiter(log)
 
-    def offer(self, item: Input) -> None:
-        """Queue ``item``, dropping the oldest input if the queue is full."""
-        if self._queue.full():
+    def offer(self, item: Input) -> bool:
+        """Queue ``item``, dropping the oldest input if the queue is full (then True)."""
+        dropped = self._queue.full()
+        if dropped:
             self._queue.get_nowait()
             self.overloads += 1
             self._log.warning("fusion loop overloaded: oldest input dropped (%d in all)",
                               self.overloads)  # fmt: skip
         self._queue.put_nowait(item)
+        return dropped
 
     async def get(self) -> Input:
         """The oldest input, waiting for one."""
@@ -164,6 +186,7 @@ class ServiceStats:
     send_errors: int = 0
     frames_unsent: int = 0  # output while the ISOBUS was not open, or after stop
     can_frames_dropped: int = 0  # receive buffers full (the loop starved), closed readers
+    stale_samples: int = 0  # IMU samples dropped for arriving at the core too late
     imu_rate_hz: float = 0.0  # IMU samples per service second, over the last STATUS interval
 
 
@@ -210,9 +233,9 @@ class GatewayService:
         self._tasks: list[asyncio.Task[None]] = []
         self._heartbeat = self._core_progress = time.monotonic()
         self._last_imu_t = -math.inf  # service time of the last IMU frame
-        self._imu_t = -math.inf  # time of the last IMU sample fed to the core
-        self._held: deque[GnssFix] = deque()  # fixes ahead of the IMU stream
+        self._held: deque[GnssFix] = deque()  # fixes waiting for the IMU stream
         self._send_log = LogLimiter(log)
+        self._stale_log = LogLimiter(log)
 
     # --- life cycle -----------------------------------------------------------------------
 
@@ -299,12 +322,10 @@ class GatewayService:
                         backoff.reset()
                         if link.isobus:
                             self._send(self.core.start(self.timebase.now()))
-                        n = 0
+                        turns = Turns()
                         async for msg in reader:
                             self._on_frame(link, msg)
-                            n += 1
-                            if n % BATCH == 0:
-                                await asyncio.sleep(0)
+                            await turns.take()
             except BusError as exc:
                 link.reopens += 1
                 link.waiting = f"reopening ({exc.__cause__ or exc})"
@@ -317,30 +338,33 @@ class GatewayService:
 
     async def _run_gnss(self) -> None:
         async for fix in self.gnss.fixes():
-            self.inbox.offer(fix)
+            self._held.append(fix)
 
     async def _run_core(self) -> None:
-        n = 0
+        turns = Turns()
         while True:
             item = await self.inbox.get()
             self._core_progress = time.monotonic()
-            if isinstance(item, GnssFix) and item.t > self._imu_t:
-                self._held.append(item)  # until the IMU stream has reached its time
-            else:
-                if isinstance(item, ImuSample):
-                    self._release_fixes(item.t)
-                    self._imu_t = item.t
-                self._send(self.core.on_input(item))
-            n += 1
-            if n % BATCH == 0:
-                await asyncio.sleep(0)
+            if isinstance(item, ImuSample):
+                self._release_fixes(item.t)
+                if self.timebase.now() - item.t > MAX_SAMPLE_AGE_S:
+                    self.stats.stale_samples += 1
+                    self.core.stats.imu_dropped += 1
+                    self._stale_log.warning("fusion loop behind: IMU samples older than %g s "
+                                            "dropped (%d in all)", MAX_SAMPLE_AGE_S,
+                                            self.stats.stale_samples)  # fmt: skip
+                    await turns.take()
+                    continue
+            self._send(self.core.on_input(item))
+            await turns.take()
 
     def _release_fixes(self, before: float) -> None:
         """Feed the held GNSS fixes older than ``before`` (service time) to the core.
 
         The core gets its inputs in time order, as replay merges them: a fix read before the
         IMU frames of the same instant have been through the loop waits for them (normally
-        less than one IMU period; at most HOLD_MAX_S while the IMU is silent).
+        less than one IMU period; at most HOLD_MAX_S while the IMU is silent), and one read
+        after them goes in before the next sample.
         """
         while self._held and self._held[0].t < before:
             self._send(self.core.on_input(self._held.popleft()))
@@ -389,7 +413,8 @@ class GatewayService:
             if self.recorder is not None:
                 self.recorder.can(msg)
             for item in self.imu_decoder.feed(msg):
-                self.inbox.offer(item)
+                if self.inbox.offer(item):
+                    self.core.stats.imu_dropped += 1
         elif link.isobus and not self.echo.is_echo(msg, time.time()):
             self._send(self.core.on_bus_frame(msg, msg.timestamp))
 
@@ -460,6 +485,8 @@ class GatewayService:
         parts += [f"CAN {link.spec} {link.waiting}" for link in self.links if link.waiting]
         if self.inbox.overloads:
             parts.append(f"{self.inbox.overloads} inputs dropped (overload)")
+        if self.stats.stale_samples:
+            parts.append(f"{self.stats.stale_samples} stale IMU samples dropped")
         if self.core.guard.withheld:
             parts.append(f"{self.core.guard.withheld} implausible outputs withheld")
         if self.stats.send_errors:
