@@ -10,10 +10,45 @@ Layers, each usable alone:
 - :func:`read_log`: the same decoder over a candump ``-L`` log (``sim_bus.canlog``).
 
 Sample time: the IMU's own clock is the truth for the period (``dt = 2^DEC / 819.2`` s, exact),
-and frame arrival only anchors it. The anchor tracks the *earliest* arrival (minimum latency):
-it drops at once to an earlier-than-predicted arrival and rises only slowly (time constant
-``anchor_tau_s``) to follow clock drift, so CAN jitter does not enter the sample times. After a
-gap longer than ``reanchor_gap_s`` or a change of DEC the anchor restarts from the next arrival.
+and frame arrival only bounds it: a frame cannot arrive before its sample was taken, but it may
+arrive late, and after a host stall (a busy ECU, or an interface such as udp_multicast that
+stamps frames when the process reads them) the whole backlog arrives late in one burst. Sample
+n is stamped ``offset + n dt - bridge_latency_s``. What is decided when, and why:
+
+- Per sample, SEQ is trusted first: the step is the SEQ difference k in 1..255 whatever the
+  arrival gap, so a stall whose frames all arrive counts nothing lost, and a gap of k - 1 is
+  counted at once. Only a step of 128..255 is ambiguous with an earlier sample arriving late
+  (out of order, or duplicated): it is taken as that if it fills a SEQ gap already counted, or if
+  the sample ahead would have been taken more than a quarter wrap after its frame arrived
+  (causality). An unchanged SEQ is a duplicate, unless half a wrap of silence passed and a whole
+  wrap ahead is causal (then 255 samples were lost).
+- The anchor ``offset`` follows the *earliest* arrivals (minimum latency). It drops at once to an
+  earlier-than-predicted arrival (counted as a re-anchor if by more than half a period, or after
+  an arrival gap over ``reanchor_gap_s``). It rises only from the least lateness of windows of
+  ``wrap_check_s / 2`` of arrival time, by the window's share of ``anchor_tau_s`` (clock drift),
+  and only when two consecutive windows are steady: their arrivals span as long as their
+  samples (tolerance ``wrap_check_s / 32``: no burst, no backlog read faster than real time) and
+  their least lateness agrees. Late frames, a stall's burst, never move the anchor nor the
+  sample times.
+- An outage longer than a SEQ wrap (256 samples) is under-counted by 256 m by its SEQ step, so
+  from then on every arrival is late by about 256 m dt, steadily. A stall is the opposite: its
+  burst catches up, or is read faster than real time. So when a SEQ gap comes with lateness
+  over half a wrap, the windows restart there, and if two steady windows (``wrap_check_s`` of
+  arrivals) agree on a lateness over half a wrap, 256 m samples (m from that lateness) are added
+  to the index and to ``lost``, the anchor restarts on the earliest of those arrivals, and a
+  warning is logged. The samples of those ``wrap_check_s`` (at most wrap_check_s / dt + 1 of
+  them, more if the host stalls meanwhile) were already emitted 256 m dt early; the times jump
+  forward there, still increasing.
+- The same steady lateness with no SEQ gap is a host clock step forward (or, indistinguishably,
+  an outage of exactly 256 m samples, which is then under-counted): the anchor restarts, no loss
+  is counted. So does a backlog read steadily less than 1/16 faster than real time while over
+  half a wrap behind (within the tolerance above).
+- A change of DEC restarts the anchor from that sample's arrival.
+
+Pairing: a half (IMU_GYRO or IMU_ACCEL) waits ``pair_timeout_s`` of arrival time for its
+partner, but at least 2 more frames (a stall may fall between the two frames of a sample) and at
+most 256 frames (a burst squeezes arrival times; a stale half must not meet the same SEQ one
+wrap later).
 """
 
 from __future__ import annotations
@@ -119,7 +154,8 @@ class ImuCanConfig:
     mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     bridge_latency_s: float = 0.0005  # nominal sample instant -> frame arrival
     anchor_tau_s: float = 10.0  # how slowly the time anchor may rise (clock drift)
-    reanchor_gap_s: float = 0.5  # arrival gap after which the time anchor restarts
+    reanchor_gap_s: float = 0.5  # an earlier arrival after such a gap counts as a re-anchor
+    wrap_check_s: float = 0.25  # arrivals late by over half a SEQ wrap this long: missed wraps
     pair_timeout_s: float = 0.05  # a half (gyro or accel) waits this long for its partner
     warn_interval_s: float = 10.0  # at most one warning per kind per this much frame time
 
@@ -140,7 +176,7 @@ class ImuCounters:
     alarms: int = 0  # samples with an EA bit set
     saturated: int = 0  # samples with some axis at the end of its register range
     no_new_data: int = 0  # samples with an ND bit clear
-    reanchors: int = 0  # time anchor restarts (long gap, DEC change)
+    reanchors: int = 0  # time anchor restarts (DEC change, early arrivals, missed SEQ wraps)
 
 
 class WarningKind(Enum):
@@ -164,6 +200,9 @@ class _RateLimit:
 
 
 _TRIADS = {ImuFrame.GYRO: "GYRO", ImuFrame.ACCEL: "ACCL"}
+#: Frames a half waits for its partner, at least and at most (module docstring, Pairing).
+_PAIR_MIN_FRAMES = 2
+_PAIR_MAX_FRAMES = 256
 
 
 @dataclass(frozen=True)
@@ -197,6 +236,7 @@ class _Half:
     """One decoded IMU_GYRO or IMU_ACCEL frame, SI, IMU axes."""
 
     t_arrival: float
+    frame_no: int  # counters.frames when it arrived (a burst squeezes arrival times)
     v_imu: npt.NDArray[np.float64]
     dec: int | None  # only the gyro frame carries DEC
     alarm: bool
@@ -228,12 +268,22 @@ class ImuDecoder:
         self._warned: dict[WarningKind, _RateLimit] = {}
         self._dec: int | None = None
         self._dt = 0.0
+        self._half_wrap = 0.0  # 128 dt
         self._n_last = 0  # absolute index of the last emitted sample
         self._n_first = 0
         self._seq_last = 0
         self._a_last = 0.0  # arrival of the last emitted sample
         self._offset = 0.0  # t_arrival_min(n) = offset + n dt
         self._missing: set[int] = set()
+        # Lateness windows (module docstring), in q = arrival - n dt, which needs no offset.
+        self._win_s = self.config.wrap_check_s / 2
+        self._steady_tol = self.config.wrap_check_s / 32
+        self._win_start = 0.0  # arrival that opened the current window
+        self._win_n0 = 0  # index of the sample that opened it
+        self._win_q = math.inf  # min q of the current window
+        self._prev_q = math.inf  # min q of the previous window (inf: none, or not steady)
+        self._gap_late = False  # a SEQ gap since the arrivals were last within half a wrap
+        self._gap_n = 0  # last index before the first such gap
 
     def feed(self, msg: can.Message) -> list[ImuSample | ImuAux]:
         """Decode one frame; returns what it completes (usually nothing or one item)."""
@@ -268,7 +318,7 @@ class ImuDecoder:
 
     def finish(self) -> None:
         """End of input: any half still waiting for its partner is unpaired."""
-        self._evict_stale_halves(math.inf)
+        self._evict_stale_halves(math.inf, final=True)
 
     @property
     def dt(self) -> float:
@@ -280,6 +330,7 @@ class ImuDecoder:
         raw = [values[n] for n in tri.out]
         half = _Half(
             t_arrival=t,
+            frame_no=self.counters.frames,
             v_imu=np.array(raw, dtype=float) * tri.si_per_unit,
             dec=int(values["DEC"]) if frame is ImuFrame.GYRO else None,
             alarm=any(values[n] for n in tri.ea),
@@ -304,41 +355,18 @@ class ImuDecoder:
         if gyro.dec != self._dec:
             start = self._dec is None
             self._dec, self._dt = gyro.dec, sample_period_s(gyro.dec)
+            self._half_wrap = 128 * self._dt
             n = 0 if start else self._n_last + 1
             self._n_first = n
             self._missing.clear()
-            self._anchor(a, n, seq, None if start else f"DEC changed to {gyro.dec}")
+            self._anchor(
+                a, n, a - n * self._dt, seq, None if start else f"DEC changed to {gyro.dec}"
+            )
         else:
-            k = (seq - self._seq_last) % 256
-            k = k - 256 if k >= 128 else k
-            elapsed = (a - self._a_last) / self._dt
-            if elapsed > 96:  # SEQ alone is ambiguous after half a wrap: unwrap with time
-                k += 256 * round((elapsed - k) / 256)
-            if k <= 0:
-                self._late(a, self._n_last + k, seq)
+            step = self._unwrap(seq, a)
+            if step is None:
                 return []
-            n = self._n_last + k
-            if k > 1:
-                c.lost += k - 1
-                self._missing.update(range(max(n - 256, self._n_last + 1), n))
-                self._warn(
-                    WarningKind.LOST,
-                    a,
-                    f"{k - 1} IMU samples lost before SEQ {seq} "
-                    f"(id 0x{self.config.ids.gyro:X}); expected SEQ {(self._seq_last + 1) % 256}",
-                )
-            r = a - (self._offset + n * self._dt)
-            if a - self._a_last > self.config.reanchor_gap_s or r < -0.5 * self._dt:
-                self._anchor(
-                    a,
-                    n,
-                    seq,
-                    f"{a - self._a_last:.3f} s gap in IMU frames"
-                    if r >= 0
-                    else f"IMU frames {-r * 1e3:.2f} ms earlier than predicted",
-                )
-            else:
-                self._offset += r if r < 0 else r * min(1.0, self._dt / self.config.anchor_tau_s)
+            n = self._track(seq, a, step)
         self._n_last, self._seq_last, self._a_last = n, seq, a
         if len(self._missing) > 512:
             self._missing = {i for i in self._missing if i > n - 256}
@@ -381,8 +409,101 @@ class ImuDecoder:
             )
         ]
 
-    def _anchor(self, a: float, n: int, seq: int, reason: str | None) -> None:
-        self._offset = a - n * self._dt
+    def _unwrap(self, seq: int, a: float) -> int | None:
+        """The index of sample ``seq`` arriving at ``a`` (None if late); counts SEQ gaps lost."""
+        n_last = self._n_last
+        k = (seq - self._seq_last) & 0xFF
+        if k == 0 or k >= 128:
+            # Behind by SEQ (a duplicate, or out of order) unless the step ahead is causal: not
+            # sampled more than a quarter wrap after it arrived; for an unchanged SEQ only after
+            # half a wrap of silence, and for a step of 128..255 only if it fills no SEQ gap.
+            ahead = n_last + (k or 256)
+            back = ahead - 256
+            if (
+                a - ahead * self._dt < self._offset - 0.5 * self._half_wrap
+                or (k == 0 and a - self._a_last <= self._half_wrap)
+                or (k != 0 and back in self._missing)
+            ):
+                self._late(a, back, seq)
+                return None
+            k = k or 256
+        n = n_last + k
+        if k > 1:
+            self.counters.lost += k - 1
+            self._missing.update(range(max(n - 256, n_last + 1), n))
+            self._warn(
+                WarningKind.LOST,
+                a,
+                f"{k - 1} IMU samples lost before SEQ {seq} "
+                f"(id 0x{self.config.ids.gyro:X}); expected SEQ {(self._seq_last + 1) % 256}",
+            )
+        return n
+
+    def _track(self, seq: int, a: float, n: int) -> int:
+        """Update the anchor with sample ``n`` arriving at ``a``; returns n plus missed wraps."""
+        q = a - n * self._dt  # the offset this arrival alone implies
+        r = q - self._offset  # its lateness against the sample clock
+        if r < 0:
+            gap = a - self._a_last
+            if r < -0.5 * self._dt:
+                self._anchor(a, n, q, seq, f"IMU frames {-r * 1e3:.2f} ms earlier than predicted")
+                return n
+            if gap > self.config.reanchor_gap_s:
+                self._anchor(a, n, q, seq, f"{gap:.3f} s gap in IMU frames")
+                return n
+            self._offset = q
+        if r <= self._half_wrap:
+            self._gap_late = False
+        elif n - self._n_last > 1 and not self._gap_late:
+            # perhaps an outage over a SEQ wrap: judge the arrivals from here on
+            self._gap_late, self._gap_n = True, self._n_last
+            self._win_start, self._win_n0, self._win_q, self._prev_q = a, n, q, math.inf
+            return n
+        if a - self._win_start < self._win_s:
+            if q < self._win_q:
+                self._win_q = q
+            return n
+        return self._close_window(seq, a, n, q)
+
+    def _close_window(self, seq: int, a: float, n: int, q: float) -> int:
+        """Window of arrivals done (``a`` opens the next): rise the anchor, or add missed wraps."""
+        offset, tol = self._offset, self._steady_tol
+        now, before = self._win_q - offset, self._prev_q - offset
+        span = a - self._win_start
+        # Steady: its arrivals span as long as its samples (no burst, no backlog read faster
+        # than real time) and its earliest lateness agrees with the previous steady window's.
+        rate_error = self._a_last - self._win_start - (self._n_last - self._win_n0) * self._dt
+        normal_rate = abs(rate_error) <= tol
+        self._prev_q = self._win_q if normal_rate else math.inf
+        self._win_q, self._win_start, self._win_n0 = q, a, n
+        if not (normal_rate and abs(now - before) <= tol):
+            return n
+        late = min(now, before)
+        if late <= self._half_wrap:
+            if late > 0:
+                self._offset = offset + late * min(1.0, span / self.config.anchor_tau_s)
+            return n
+        wait = f"{late:.3f} s later than predicted for {self.config.wrap_check_s} s"
+        if not self._gap_late:
+            self._anchor(a, n, offset + late, seq, f"IMU frames {wait} with no SEQ gap")
+            return n
+        shift = 256 * round(late / (2 * self._half_wrap))
+        self.counters.lost += shift
+        self._missing = {i + shift if i > self._gap_n else i for i in self._missing}
+        why = (
+            f"IMU frames {wait} after a SEQ gap: the gap spanned {shift // 256} more SEQ "
+            f"wrap(s), {shift} more samples lost"
+        )
+        self._warn(WarningKind.LOST, a, f"{why} before SEQ {seq}")
+        n += shift
+        self._anchor(a, n, offset + late - shift * self._dt, seq, why)
+        return n
+
+    def _anchor(self, a: float, n: int, offset: float, seq: int, reason: str | None) -> None:
+        """Restart the sample clock at ``offset`` (sample ``n`` arrived at ``a``)."""
+        self._offset = offset
+        self._win_start, self._win_n0, self._win_q, self._prev_q = a, n, a - n * self._dt, math.inf
+        self._gap_late = False
         if reason is not None:
             self.counters.reanchors += 1
             self._warn(WarningKind.REANCHOR, a, f"IMU time re-anchored at SEQ {seq}: {reason}")
@@ -424,11 +545,25 @@ class ImuDecoder:
             smpl_prd=int(values["SMPL_PRD"]),
         )
 
-    def _evict_stale_halves(self, t: float) -> None:
+    def _evict_stale_halves(self, t: float, final: bool = False) -> None:
+        if not self._pending:
+            return
         limit = t - self.config.pair_timeout_s
-        for key in [k for k, h in self._pending.items() if h.t_arrival < limit]:
+        frames = self.counters.frames
+        for key in [
+            k
+            for k, h in self._pending.items()
+            if final
+            or (h.t_arrival < limit and frames - h.frame_no > _PAIR_MIN_FRAMES)
+            or frames - h.frame_no > _PAIR_MAX_FRAMES
+        ]:
             del self._pending[key]
-            self._unpaired(t, key[0], key[1], f"no partner within {self.config.pair_timeout_s} s")
+            self._unpaired(
+                t,
+                key[0],
+                key[1],
+                f"no partner within {self.config.pair_timeout_s} s or {_PAIR_MAX_FRAMES} frames",
+            )
 
     def _unpaired(self, t: float, frame: ImuFrame, seq: int, why: str) -> None:
         self.counters.unpaired += 1

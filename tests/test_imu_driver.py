@@ -167,14 +167,22 @@ def test_impairments_are_counted_exactly_and_never_crash() -> None:
     assert np.all(np.diff([x.t for x in s]) > 0)
 
 
-def test_long_gap_reanchors_and_counts_lost_across_seq_wraps() -> None:
+def test_long_gap_counts_lost_across_seq_wraps_once_arrivals_stay_late() -> None:
     out, msgs = sim(6.0)
     pairs = [m for m in msgs if m.arbitration_id != 0x18FF1280]
     keep = pairs[: 2 * 100] + pairs[2 * 700 :]  # 600 samples (2.9 s, SEQ wraps twice) missing
     dec = ImuDecoder()
     s = samples([i for m in keep for i in dec.feed(m)])
     assert dec.counters.lost == 600 and dec.counters.reanchors == 1
-    assert abs(s[100].t - out.t[700]) < 3e-4
+    t = np.array([x.t for x in s])
+    err = t - np.concatenate([out.t[:100], out.t[700:]])
+    # SEQ alone gives 88 lost; the two further wraps show as arrivals that stay 512 dt late,
+    # decided after wrap_check_s of them: the samples before that were emitted 512 dt early.
+    early = np.flatnonzero(np.abs(err) > 3e-4)
+    assert early[0] == 100 and len(early) == early[-1] - 99
+    assert len(early) <= math.ceil(ImuCanConfig().wrap_check_s / DT) + 1
+    np.testing.assert_allclose(err[early], -512 * DT, atol=3e-4)
+    assert np.all(np.diff(t) > 0)
 
 
 def test_unrelated_traffic_is_filtered_before_the_decoder() -> None:
