@@ -416,13 +416,17 @@ class ImuDecoder:
         if k == 0 or k >= 128:
             # Behind by SEQ (a duplicate, or out of order) unless the step ahead is causal: not
             # sampled more than a quarter wrap after it arrived; for an unchanged SEQ only after
-            # half a wrap of silence, and for a step of 128..255 only if it fills no SEQ gap.
+            # half a wrap of silence, and for a step of 128..255 only if it fills no SEQ gap
+            # or arrived on time for the step ahead (then it is a loss: an overloaded reader
+            # drops runs of 128-255 samples with their stamps intact, and with losses that
+            # frequent, some earlier gap is always there to be "filled").
             ahead = n_last + (k or 256)
             back = ahead - 256
+            late_ahead = a - ahead * self._dt - self._offset
             if (
-                a - ahead * self._dt < self._offset - 0.5 * self._half_wrap
+                late_ahead < -0.5 * self._half_wrap
                 or (k == 0 and a - self._a_last <= self._half_wrap)
-                or (k != 0 and back in self._missing)
+                or (k != 0 and back in self._missing and late_ahead > 0.5 * self._half_wrap)
             ):
                 self._late(a, back, seq)
                 return None
