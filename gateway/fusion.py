@@ -8,14 +8,23 @@ come; frames received from the ISOBUS go to the address claim.
 
 Frames come back as iterators that encode as they are taken: a caller that sends while it
 iterates puts the attitude on the bus first (see :meth:`OutputScheduler.frames`).
+
+The IMU drives the outputs, so without it nothing would go out: when no sample has come for
+:data:`IMU_SILENT_S`, every other input and timer tick (the live loop's, a GNSS fix in replay)
+sends NAVGW_STATUS alone at its rate, saying FAULT with the IMU not ok and the samples missing
+in byte 6 (SPEC 4: an outage is reported, not silent). A gap of :data:`RESTART_GAP_S` or more
+restarts the engine: the motion over it is unknown, and a solution carried across it would be
+a guess.
 """
 
 from __future__ import annotations
 
+import logging
+import math
 import random
 from collections import deque
-from collections.abc import Iterable, Iterator
-from dataclasses import dataclass
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
 from itertools import chain
 
 import can
@@ -24,13 +33,21 @@ from drivers.imu_can import ImuCounters
 from drivers.samples import GnssFix, ImuAux, ImuSample
 from gateway.address_claim import AddressClaimer, Name
 from gateway.config import GatewayConfig
-from gateway.j1939 import DEFAULT_SOURCE_ADDRESS
+from gateway.j1939 import DEFAULT_SOURCE_ADDRESS, Pgn
 from gateway.n2k_encode import LoopStatus, OutputEncoder
 from gateway.output_guard import OutputGuard
 from gateway.scheduler import OutputScheduler
-from gateway.solution import Estimator, Solution
+from gateway.solution import Estimator, Mode, Solution
+
+log = logging.getLogger(__name__)
 
 LOST_WINDOW_S = 1.0  # NAVGW_STATUS byte 6: IMU samples lost in the last second
+#: No IMU sample for this long: NAVGW_STATUS goes on alone, saying FAULT (40 periods at
+#: 204.8 Hz; the service's tick looks every 50 ms).
+IMU_SILENT_S = 0.2
+#: A gap this long in the IMU stream, or time going back this much, restarts the engine
+#: (30 s of silence carried across put the EKF's first position 84 m off while navigating).
+RESTART_GAP_S = 1.0
 
 
 @dataclass
@@ -42,6 +59,7 @@ class FusionStats:
     gnss_fixes: int = 0
     frames_out: int = 0
     imu_dropped: int = 0  # samples the live loop dropped before the engine (overload, stale)
+    engine_restarts: int = 0  # after a gap of RESTART_GAP_S in the IMU stream
 
 
 class FusionCore:
@@ -53,8 +71,10 @@ class FusionCore:
         scheduler: OutputScheduler,
         claimer: AddressClaimer,
         imu_counters: ImuCounters | None = None,
+        make_engine: Callable[[], Estimator] | None = None,
     ) -> None:
         self.engine = engine
+        self._make_engine = make_engine  # for a restart; None: the engine carries on
         self.scheduler = scheduler
         self.claimer = claimer
         self.guard = OutputGuard()
@@ -62,6 +82,7 @@ class FusionCore:
         self.stats = FusionStats()
         self._imu_counters = imu_counters or ImuCounters()
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
+        self._last_sample: ImuSample | None = None
 
     @classmethod
     def from_config(
@@ -76,6 +97,7 @@ class FusionCore:
         )
         return cls(
             engine=config.make_engine(),
+            make_engine=config.make_engine,
             scheduler=OutputScheduler(
                 config.output.rates_hz(), OutputEncoder(config.isobus.manufacturer_code)
             ),
@@ -99,11 +121,26 @@ class FusionCore:
             self.engine.gnss(item)
         else:
             self.stats.imu_aux += 1  # temperature, supply, DIAG_STAT: counted by the decoder
-        return iter(())
+        return self._counted(self._silent_status(item.t))
 
     def on_imu(self, sample: ImuSample) -> Iterator[can.Message]:
         """Propagate with one sample, then send whatever is due at its time."""
         self.stats.imu_samples += 1
+        last = self._last_sample
+        if (
+            last is not None
+            and abs(sample.t - last.t) >= RESTART_GAP_S
+            and self._make_engine is not None
+        ):
+            self.engine = self._make_engine()
+            self.guard.forget_track()
+            self.stats.engine_restarts += 1
+            log.warning(
+                "IMU samples resumed %.3f s after the last one at t=%.3f: the engine restarts "
+                "(attitude and position are re-aligned before anything is sent)",
+                sample.t - last.t, last.t,
+            )  # fmt: skip
+        self._last_sample = sample
         self.engine.imu(sample)
         out: Iterable[can.Message] = self.claimer.poll(sample.t)
         if self.claimer.claimed and self.scheduler.is_due(sample.t):
@@ -117,7 +154,29 @@ class FusionCore:
 
     def poll(self, now: float) -> Iterator[can.Message]:
         """Advance timers without an input (the live loop calls this when the IMU is silent)."""
-        return self._counted(self.claimer.poll(now))
+        return self._counted(chain(self.claimer.poll(now), self._silent_status(now)))
+
+    def _silent_status(self, now: float) -> Iterable[can.Message]:
+        """NAVGW_STATUS alone, FAULT, when no IMU sample has come for IMU_SILENT_S."""
+        last = self._last_sample
+        if not self.claimer.claimed or (last is not None and now - last.t < IMU_SILENT_S):
+            return ()
+        sol = self.engine.solution()
+        silent = Solution(
+            t=now,
+            mode=Mode.FAULT,
+            fix_quality=sol.fix_quality,
+            gnss_ok=sol.gnss_ok,
+            is_ekf=sol.is_ekf,
+            convergence=sol.convergence,
+        )
+        loop = self.loop_status(now)
+        if last is not None:
+            missing = math.floor(min(now - last.t, LOST_WINDOW_S) / last.dt)
+            loop = replace(loop, imu_samples_lost=loop.imu_samples_lost + missing)
+        else:
+            loop = replace(loop, imu_samples_lost=255)
+        return self.scheduler.frames(silent, loop, only=(Pgn.NAVGW_STATUS,))
 
     def _counted(self, frames: Iterable[can.Message]) -> Iterator[can.Message]:
         for msg in frames:

@@ -16,6 +16,10 @@ limited rate (solution time, so replay logs the same). Checks:
   been continuous with itself for ``settle_s`` (a real reset after an outage costs that long
   without position, an absurd spike never gets through).
 
+It also makes the fix fields say what the position sent is (SPEC 4): while COASTING the
+position is dead reckoning (GGA quality 6; satellites, HDOP and age not available), and
+without a position, no fix (0), not the last fix received.
+
 Pure code with no clock of its own, like the engines: the live service and replay guard
 identically.
 """
@@ -30,6 +34,7 @@ from enum import Enum
 
 import numpy as np
 
+from drivers.samples import FixQuality
 from gateway.solution import Mode, Solution
 
 log = logging.getLogger(__name__)
@@ -90,6 +95,10 @@ class OutputGuard:
         self._last_warn_t = -math.inf
         self._suppressed = 0
 
+    def forget_track(self) -> None:
+        """The next position starts a new track (the engine was restarted)."""
+        self._track = self._candidate = None
+
     @property
     def withheld(self) -> int:
         """Solutions' fields withheld so far, all kinds."""
@@ -97,6 +106,15 @@ class OutputGuard:
 
     def check(self, sol: Solution) -> Solution:
         """``sol`` with what fails the checks set to None and the mode lowered accordingly."""
+        if sol.mode is Mode.COASTING and sol.fix_quality is not None:
+            dead_reckoning = sol.lat_deg is not None
+            sol = replace(
+                sol,
+                fix_quality=FixQuality.DEAD_RECKONING if dead_reckoning else FixQuality.NONE,
+                num_sats=None,
+                hdop=None,
+                age_s=None,
+            )
         lim = self.limits
         changes: dict[str, object] = {}
         reasons: list[str] = []

@@ -10,7 +10,7 @@ one SID, which advances once per instant that sends any SID-carrying PGN.
 from __future__ import annotations
 
 import math
-from collections.abc import Iterator, Mapping
+from collections.abc import Collection, Iterator, Mapping
 
 import can
 
@@ -70,10 +70,13 @@ class OutputScheduler:
         """True when some PGN is due at ``t``: callers skip building a solution otherwise."""
         return t >= self._next_due_t
 
-    def due(self, t: float) -> list[Pgn]:
-        """PGNs whose next grid slot has come at time ``t`` (marks them sent)."""
+    def due(self, t: float, only: Collection[Pgn] | None = None) -> list[Pgn]:
+        """PGNs (of ``only``, if given) whose next grid slot has come at time ``t`` (marks
+        them sent)."""
         pgns = []
         for pgn, rate in self.rates_hz.items():
+            if only is not None and pgn not in only:
+                continue
             slot = math.floor(t * rate + _GRID_TOLERANCE)
             last = self._last_slot.get(pgn)
             if last is None or slot > last:
@@ -85,8 +88,11 @@ class OutputScheduler:
         )
         return pgns
 
-    def frames(self, solution: Solution, loop: LoopStatus) -> Iterator[can.Message]:
-        """Frames to send for ``solution`` (none before the address is claimed).
+    def frames(
+        self, solution: Solution, loop: LoopStatus, only: Collection[Pgn] | None = None
+    ) -> Iterator[can.Message]:
+        """Frames to send for ``solution`` (none before the address is claimed); ``only``
+        limits them to those PGNs.
 
         Which PGNs are due and their SID are decided now; each frame is encoded as the caller
         takes it, in the order of :data:`DEFAULT_RATES_HZ` (attitude and rate of turn first),
@@ -95,7 +101,7 @@ class OutputScheduler:
         """
         if not loop.address_claimed:
             return iter(())
-        pgns = self.due(solution.t)
+        pgns = self.due(solution.t, only)
         if SID_PGNS.intersection(pgns):
             self._sid = (self._sid + 1) % SID_MODULO
         return self._encode(pgns, solution, loop, self._sid)

@@ -1,0 +1,158 @@
+"""Outages told on the bus: a silent IMU, a silent receiver (SPEC 4 integrity).
+
+The real FusionCore from a config, fed exact motion (tests.kinematics) in time order as replay
+feeds it; frames written as candump and read back with the nmea2000 package (positions, fix
+method) and as raw NAVGW_STATUS bytes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivers.samples import FixQuality, GnssFix, ImuSample
+from gateway.config import Engine, GatewayConfig, GnssSection, VehicleSection
+from gateway.epoch_clock import EpochTime
+from gateway.fusion import RESTART_GAP_S, FusionCore
+from gateway.geodesy import lla_to_ned
+from gateway.solution import Mode
+from sim_bus.canlog import CandumpWriter, read_candump
+from tests.kinematics import (
+    ORIGIN_LLA,
+    T0_S,
+    Motion,
+    Segment,
+    gnss_stream,
+    imu_stream,
+    motion_time,
+    state_at,
+)
+from tests.n2k_check import decode_log
+
+LEVER = (0.5, 0.0, -3.0)
+STATUS_ID = 0x18FF221C
+MOTION = Motion(
+    [
+        Segment(10.0),
+        Segment(5.0, accel_mps2=0.6),
+        Segment(40.0),
+        Segment(10.0, yaw_rate_rps=0.1),
+        Segment(60.0),
+    ]
+)
+
+
+def run(path: Path, engine: Engine, imu: list[ImuSample], fixes: list[GnssFix]) -> FusionCore:
+    """Both streams through the core in time order; frames to ``path``."""
+    config = GatewayConfig(
+        vehicle=VehicleSection(antenna_lever_arm_m=LEVER),
+        gnss=GnssSection(epoch_time=EpochTime.UTC),
+    ).with_engine(engine)
+    core = FusionCore.from_config(config)
+    with CandumpWriter(path, "can0") as writer:
+        writer.write_all(core.start(T0_S))
+        j = 0
+        for s in imu:
+            while j < len(fixes) and fixes[j].t <= s.t:
+                writer.write_all(core.on_input(fixes[j]))
+                j += 1
+            writer.write_all(core.on_input(s))
+    return core
+
+
+def status(path: Path) -> list[tuple[float, bytes]]:
+    """(motion time, data) of every NAVGW_STATUS frame."""
+    return [
+        (motion_time(f.timestamp), bytes(f.data))
+        for f in read_candump(path)
+        if f.arbitration_id == STATUS_ID
+    ]
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_a_silent_imu_is_a_fault_on_the_bus_then_the_engine_restarts(
+    tmp_path: Path, engine: Engine
+) -> None:
+    silent = (60.0, 90.0)
+    imu = [
+        s
+        for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+        if not silent[0] <= motion_time(s.t) < silent[1]
+    ]
+    fixes = gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    log = tmp_path / "out.log"
+    core = run(log, engine, imu, fixes)
+    assert core.stats.engine_restarts == 1
+
+    frames = status(log)
+    during = [d for t, d in frames if silent[0] + 0.3 <= t < silent[1]]
+    # NAVGW_STATUS keeps its 10 Hz: FAULT, IMU not ok, byte 6 counting the missing samples
+    assert len(during) >= 10 * (silent[1] - silent[0] - 0.3) - 2
+    assert {Mode(d[2]) for d in during} == {Mode.FAULT}
+    assert all(d[4] & 0x01 == 0 for d in during)
+    assert min(d[6] for t, d in frames if silent[0] + 1.2 <= t < silent[1]) >= 200
+    before = [Mode(d[2]) for t, d in frames if 40.0 <= t < silent[0]]
+    assert set(before) == {Mode.NAVIGATING}
+
+    decoded = decode_log(log)
+    nav = [m for m in decoded if m.id in ("attitude", "positionRapidUpdate")]
+    assert not [m for m in nav if silent[0] + 0.05 <= motion_time(m.t) < silent[1]]
+    # after the restart: aligned again (the EKF levels on a moving vehicle after 10 s), and
+    # every position on the track
+    after = [Mode(d[2]) for t, d in frames if silent[1] + 12.0 <= t < silent[1] + 30.0]
+    assert set(after) == {Mode.NAVIGATING}, after
+    worst = 0.0
+    for m in decoded:
+        if m.id != "positionRapidUpdate" or m.fields["latitude"] is None:
+            continue
+        lla = [m.fields["latitude"], m.fields["longitude"], 0.0]
+        ned = lla_to_ned(np.array(lla, dtype=float), ORIGIN_LLA)
+        truth = state_at(MOTION, motion_time(m.t)).p_ned_m[0]
+        worst = max(worst, float(np.hypot(*(ned[:2] - truth[:2]))))
+    assert worst < 0.5
+
+
+def test_time_going_back_restarts_the_engine(tmp_path: Path) -> None:
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    k = next(i for i, s in enumerate(imu) if motion_time(s.t) >= 50.0)
+    step = 2.0 * RESTART_GAP_S
+    back = imu[:k] + [ImuSample(s.t - step, s.dt, s.w_ib_b, s.f_ib_b, s.seq) for s in imu[k:]]
+    fixes = [
+        dataclasses.replace(f, t=f.t - step, t_utc=f.t_utc - step)
+        if f.t_utc is not None and motion_time(f.t_utc) >= 50.0
+        else f
+        for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    ]
+    fixes = [f for f in fixes if not 50.0 - step <= motion_time(f.t) < 50.0 or f.t_utc is None]
+    core = run(tmp_path / "out.log", Engine.OBSERVER, back, sorted(fixes, key=lambda f: f.t))
+    assert core.stats.engine_restarts == 1
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_while_coasting_the_fix_fields_say_dead_reckoning(tmp_path: Path, engine: Engine) -> None:
+    outage = (60.0, 75.0)
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    fixes = [
+        f
+        for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+        if not outage[0] <= motion_time(f.t) < outage[1]
+    ]
+    log = tmp_path / "out.log"
+    run(log, engine, imu, fixes)
+    frames = status(log)
+    coasting = [d for t, d in frames if outage[0] + 2.0 <= t < outage[1]]
+    assert coasting and {Mode(d[2]) for d in coasting} == {Mode.COASTING}
+    assert {d[3] for d in coasting} == {int(FixQuality.DEAD_RECKONING)}
+    assert {d[3] for t, d in frames if 40.0 <= t < outage[0]} == {int(FixQuality.RTK_FIXED)}
+    gnss = [
+        m
+        for m in decode_log(log)
+        if m.id == "gnssPositionData" and outage[0] + 2.0 <= motion_time(m.t) < outage[1]
+    ]
+    assert gnss
+    for m in gnss:
+        assert m.fields["method"] in ("Estimated (DR) mode", 6), m.fields["method"]
+        assert m.fields["numberOfSvs"] is None
