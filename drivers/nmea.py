@@ -432,7 +432,7 @@ class NmeaDecoder:
             return
         try:
             values = _decode_fields(pynmea2.parse(text[0] + body), layout, complete=not star)
-        except ValueError as exc:  # pynmea2.ParseError is a ValueError
+        except (ValueError, OverflowError) as exc:  # ParseError is a ValueError; huge dates
             self.counters.parse_errors += 1
             self._warn(
                 "parse", f"{where}: cannot decode {self._show(text)}: {exc}; sentence dropped"

@@ -12,6 +12,7 @@ instead of ending the whole read. Replay and the IMU driver's log source both us
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -115,6 +116,8 @@ def parse_candump_line(line: str, where: str = "<line>") -> can.Message | None:
         if not (stamp.startswith("(") and stamp.endswith(")")):
             raise ValueError("timestamp not in parentheses")
         timestamp = float(stamp[1:-1])
+        if not (math.isfinite(timestamp) and timestamp >= 0.0):
+            raise ValueError(f"timestamp {stamp} is not finite seconds >= 0")
         id_text, sep, data = frame.partition("#")
         if not sep or len(id_text) not in (3, 8):
             raise ValueError("id must be 3 (standard) or 8 (extended) hex digits before '#'")

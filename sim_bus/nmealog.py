@@ -75,10 +75,13 @@ class NmeaLogReader(Closing, Iterator[tuple[float | None, str]]):
     ) -> None:
         self.bad_lines = 0
         self.max_reports = max_reports
-        self._own: IO[bytes] | None = None
+        self._own: IO[str] | None = None
         stream: IO[str] | IO[bytes]
         if isinstance(source, (str, os.PathLike)):
-            self._own = stream = Path(source).open("rb")  # noqa: SIM115 - closed at the end
+            # universal newlines: CR-only logs too (else the whole file was one record)
+            self._own = stream = open(  # noqa: SIM115 - closed at the end
+                source, encoding="ascii", errors="replace", newline=None
+            )
             self.name = str(source)
         else:
             stream = source

@@ -93,6 +93,9 @@ def test_bad_lines_are_counted_skipped_and_reported(caplog: pytest.LogCaptureFix
         "(1.0) can0 0CFF1080#00112233445566778899",
         "(1.0) can0 800#00",
         "(1.0) can0 123#ZZ",
+        "(nan) can0 0CFF1080#0102030405060708",  # ended all output before, exit 0
+        "(-inf) can0 0CFF1080#0102030405060708",  # a traceback before
+        "(-1700000000.000001) can0 0CFF1080#0102030405060708",  # 4.9e11 samples 'lost'
     ]
     text = "\n".join([good, *bad, "", good]) + "\n"
     reader = CandumpReader(io.StringIO(text))

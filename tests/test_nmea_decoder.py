@@ -312,3 +312,11 @@ def test_mutated_stream_never_raises(edits: list[tuple[int, int, bytes]]) -> Non
         data[at : at + remove] = insert
     fixes, decoder = decode(bytes(data))
     assert len(fixes) <= decoder.counters.sentences_ok
+
+
+def test_a_date_too_large_for_any_calendar_is_a_parse_error_not_a_crash() -> None:
+    """Seen: OverflowError ended navgw run's GNSS task and made replay exit with a traceback."""
+    bad = "$GNZDA,221320.00,99999999999999999999,11,2023,00,00*7B"
+    fixes, decoder = decode(stream(bad, *epoch()))
+    assert decoder.counters.parse_errors == 1
+    assert len(fixes) == 1 and fixes[0].quality is FixQuality.RTK_FIXED

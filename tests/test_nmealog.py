@@ -110,3 +110,11 @@ def test_round_trip_of_simulated_receiver_output(tmp_path: Path) -> None:
     back = list(read_nmea_log(path))
     assert [s for _, s in back] == [line.sentence for line in out.lines]
     assert [t for t, _ in back] == pytest.approx([a.host_t for a in out.lines], abs=5e-7)
+
+
+@pytest.mark.parametrize("eol", ["\r\n", "\n", "\r"])
+def test_any_line_end_splits_records(tmp_path: Path, eol: str) -> None:
+    """CR-only logs were read as one record: aligning for the whole run."""
+    path = tmp_path / "log.nmea"
+    path.write_bytes(eol.join([f"(1700000000.1) {GGA}", f"(1700000000.2) {RMC}", ""]).encode())
+    assert list(read_nmea_log(path)) == [(1700000000.1, GGA), (1700000000.2, RMC)]
