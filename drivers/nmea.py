@@ -52,6 +52,9 @@ log = logging.getLogger(__name__)
 KNOT_MPS = 1852.0 / 3600.0
 SECONDS_PER_DAY = 86400.0
 TWO_PI = 2.0 * math.pi
+#: Unknown sentence types counted one by one; any further one is counted under OTHER_TYPES.
+MAX_COUNTED_TYPES = 64
+OTHER_TYPES = "other"
 
 _START = re.compile(rb"[$!]")
 _STOP = re.compile(rb"[^\x20-\x7e]|[$!]")  # first byte that cannot continue a sentence
@@ -425,7 +428,12 @@ class NmeaDecoder:
                 return
         address = body.split(",", 1)[0]
         kind = address[2:] if len(address) == 5 and address[0] != "P" else address
-        self.counters.by_type[kind] = self.counters.by_type.get(kind, 0) + 1
+        by_type = self.counters.by_type
+        if kind not in by_type and kind not in _LAYOUTS and len(by_type) >= MAX_COUNTED_TYPES:
+            kind_key = OTHER_TYPES  # junk with random addresses: one key each was 91 MB per 1e6
+        else:
+            kind_key = kind
+        by_type[kind_key] = by_type.get(kind_key, 0) + 1
         layout = _LAYOUTS.get(kind)
         if layout is None:
             self.counters.unsupported += 1

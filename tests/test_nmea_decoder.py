@@ -320,3 +320,11 @@ def test_a_date_too_large_for_any_calendar_is_a_parse_error_not_a_crash() -> Non
     fixes, decoder = decode(stream(bad, *epoch()))
     assert decoder.counters.parse_errors == 1
     assert len(fixes) == 1 and fixes[0].quality is FixQuality.RTK_FIXED
+
+
+def test_junk_sentence_types_do_not_grow_the_counters() -> None:
+    junk = [s(f"X{i:04d},1", talker="") for i in range(5000)]
+    fixes, decoder = decode(stream(*junk, *epoch()))
+    by_type = decoder.counters.by_type
+    assert len(by_type) <= 64 + 1 + 6 and sum(by_type.values()) == 5000 + 6
+    assert by_type["GGA"] == by_type["RMC"] == 1 and len(fixes) == 1
