@@ -14,14 +14,18 @@ random byte, as AgIsoStack++ does), claim of the preferred address, 250 ms conte
 claimed. A competing claim for our address is won by the lower NAME: if ours is lower we
 re-send our claim; if not we claim the lowest free address of the self-configurable range
 128-247 (addresses claimed by others are tracked), or send cannot-claim from 254 and stop.
-Requests for 60928 (global or to our address) are answered. Frames carrying our own NAME are
-our own echo (udp_multicast and some adapters echo; can-j1939 floods the bus by treating
-them as a contender) and are ignored.
+Addresses given as ``reserved`` (the IMU bridge's, which sends on the same bus without
+claiming) are never taken. Requests for 60928 (global or to our address) are answered. Every
+change of address is logged. Frames carrying our own NAME are our own echo (udp_multicast
+and some adapters echo; can-j1939 floods the bus by treating them as a contender) and are
+ignored.
 """
 
 from __future__ import annotations
 
+import logging
 import random
+from collections.abc import Collection
 from dataclasses import dataclass
 from enum import Enum, IntEnum
 
@@ -41,6 +45,8 @@ from gateway.j1939 import (
     Pgn,
     can_id,
 )
+
+log = logging.getLogger(__name__)
 
 SELF_CONFIGURABLE_ADDRESSES = range(128, 248)
 CONTENTION_S = 0.25
@@ -109,6 +115,7 @@ class AddressClaimer:
         name: Name,
         preferred_address: int = DEFAULT_SOURCE_ADDRESS,
         rng: random.Random | None = None,
+        reserved: Collection[int] = (),
     ) -> None:
         if not 0 <= preferred_address < NULL_ADDRESS:
             raise ValueError(f"preferred address {preferred_address} is not 0-253")
@@ -118,6 +125,7 @@ class AddressClaimer:
         self._preferred = preferred_address
         self._rng = rng or random.Random()
         self._others: dict[int, int] = {}  # address -> NAME of the node holding it
+        self._reserved = frozenset(reserved)  # used on the bus by nodes that do not claim
         self._deadline = 0.0
         self.state = ClaimState.IDLE
         self.address: int | None = None  # held or being claimed
@@ -143,7 +151,7 @@ class AddressClaimer:
         """Advance the timers: send the first claim, or end the contention period."""
         if self.state is ClaimState.WAITING and now >= self._deadline:
             held_by = self._others.get(self._preferred)
-            if held_by is None or held_by > self._name:
+            if self._preferred not in self._reserved and (held_by is None or held_by > self._name):
                 return self._claim(self._preferred, now)
             return self._claim_free_or_give_up(now)
         if self.state is ClaimState.CLAIMING and now >= self._deadline:
@@ -187,14 +195,28 @@ class AddressClaimer:
         return []
 
     def _claim_free_or_give_up(self, now: float) -> list[can.Message]:
-        free = [a for a in SELF_CONFIGURABLE_ADDRESSES if a not in self._others]
+        taken = self._others.keys() | self._reserved
+        free = [a for a in SELF_CONFIGURABLE_ADDRESSES if a not in taken]
         if self._arbitrary and free:
             return self._claim(free[0], now)
+        log.warning(
+            "address claim: no address free in %d-%d (in use: %s); sending cannot-claim and "
+            "staying silent",
+            SELF_CONFIGURABLE_ADDRESSES.start, SELF_CONFIGURABLE_ADDRESSES.stop - 1,
+            ", ".join(f"0x{a:02X}" for a in sorted(taken)),
+        )  # fmt: skip
         self.state = ClaimState.FAILED
         self.address = None
         return [self._claim_message(NULL_ADDRESS, now)]  # cannot claim
 
     def _claim(self, address: int, now: float) -> list[can.Message]:
+        if self.address is not None and address != self.address:
+            holder = self._others.get(self.address)
+            log.warning(
+                "address claim: 0x%02X lost to NAME 0x%016X (lower than ours, 0x%016X); "
+                "claiming 0x%02X",
+                self.address, holder or 0, self._name, address,
+            )  # fmt: skip
         self.state = ClaimState.CLAIMING
         self.address = address
         self._deadline = now + CONTENTION_S

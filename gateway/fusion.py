@@ -103,7 +103,10 @@ class FusionCore:
             ),
             # Seeded by the NAME: replay is deterministic, and two units differ in identity.
             claimer=AddressClaimer(
-                name, config.isobus.preferred_address, random.Random(name.value())
+                name,
+                config.isobus.preferred_address,
+                random.Random(name.value()),
+                reserved=(config.imu.bridge_source_address,),
             ),
             imu_counters=imu_counters,
         )

@@ -1,5 +1,6 @@
 """Address claim on python-can ``virtual`` buses: our state machine against raw nodes."""
 
+import logging
 import random
 
 import can
@@ -36,10 +37,10 @@ def request_frame(source: int, destination: int) -> can.Message:
 class Node:
     """Our claimer plus the output scheduler behind a virtual bus, driven by a test clock."""
 
-    def __init__(self, channel: str, seed: int = 1) -> None:
+    def __init__(self, channel: str, seed: int = 1, reserved: tuple[int, ...] = ()) -> None:
         # receive_own_messages: the bus echoes our frames, as udp_multicast does
         self.bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=True)
-        self.claimer = AddressClaimer(NAME, rng=random.Random(seed))
+        self.claimer = AddressClaimer(NAME, rng=random.Random(seed), reserved=reserved)
         self.scheduler = OutputScheduler()
         self.now = 1_700_000_000.0
         self.sent: list[can.Message] = []
@@ -246,3 +247,24 @@ def test_preferred_address_and_name_fields_are_validated() -> None:
         AddressClaimer(NAME, preferred_address=254)
     with pytest.raises(ValueError, match="IDENTITY_NUMBER"):
         Name(identity_number=1 << 21).value()
+
+
+def test_a_reserved_address_is_never_taken_and_every_move_is_logged(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """The IMU bridge sends from 0x80 without claiming it: losing 0x1C must not move us
+    there (seen: two nodes sending from 0x80, and the gateway's move not logged)."""
+    node, raw = Node("claim-reserved", reserved=(0x80,)), Raw("claim-reserved")
+    try:
+        node.start()
+        node.run(0.6)
+        with caplog.at_level(logging.WARNING, logger="gateway.address_claim"):
+            raw.bus.send(claim_frame(0x1C, OURS - 1))
+            node.run(0.4)
+        assert node.claimer.claimed and node.claimer.address == 0x81
+        assert node.claims() == [0x1C, 0x81]
+        text = [r.getMessage() for r in caplog.records]
+        assert any("0x1C lost" in t and "claiming 0x81" in t for t in text), text
+    finally:
+        node.bus.shutdown()
+        raw.bus.shutdown()
