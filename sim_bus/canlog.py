@@ -95,6 +95,13 @@ def write_candump(path: str | Path, messages: Iterable[can.Message], channel: st
         return writer.write_all(messages)
 
 
+def excerpt(text: str, limit: int = 60) -> str:
+    """A bad line as a warning shows it: escaped, and cut to ``limit`` characters."""
+    if len(text) <= limit:
+        return repr(text)
+    return f"{text[:limit]!r}... ({len(text)} characters)"
+
+
 def parse_candump_line(line: str, where: str = "<line>") -> can.Message | None:
     """Parse one candump ``-L`` line; ``None`` for a blank line.
 
@@ -110,7 +117,7 @@ def parse_candump_line(line: str, where: str = "<line>") -> can.Message | None:
         is_rx = fields[3].lower() == "r"
         fields = fields[:3]
     if len(fields) != 3:
-        raise InputError(f"{len(fields)} fields in {text!r}", where, LINE_FORMAT)
+        raise InputError(f"{len(fields)} fields in {excerpt(text)}", where, LINE_FORMAT)
     stamp, channel_text, frame = fields
     try:
         if not (stamp.startswith("(") and stamp.endswith(")")):
@@ -152,7 +159,7 @@ def parse_candump_line(line: str, where: str = "<line>") -> can.Message | None:
             dlc = len(payload)
             is_remote = False
     except ValueError as exc:
-        raise InputError(f"{exc} in {text!r}", where, LINE_FORMAT) from None
+        raise InputError(f"{exc} in {excerpt(text)}", where, LINE_FORMAT) from None
     return can.Message(
         timestamp=timestamp,
         arbitration_id=can_id,

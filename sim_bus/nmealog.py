@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import IO, TextIO
 
 from drivers.errors import InputError
+from sim_bus.canlog import excerpt
 from sim_bus.closing import Closing
 
 log = logging.getLogger(__name__)
@@ -51,13 +52,15 @@ def parse_nmea_log_line(line: str, where: str = "<line>") -> tuple[float | None,
         return None, text
     close = text.find(")")
     if close < 0:
-        raise InputError(f"no ')' closing the host time in {text[:60]!r}", where, LINE_FORMAT)
+        raise InputError(f"no ')' closing the host time in {excerpt(text)}", where, LINE_FORMAT)
     stamp = text[1:close]
     if not _STAMP.fullmatch(stamp):
-        raise InputError(f"host time {stamp[:40]!r} is not decimal seconds", where, LINE_FORMAT)
+        raise InputError(
+            f"host time {excerpt(stamp, 40)} is not decimal seconds", where, LINE_FORMAT
+        )
     sentence = text[close + 1 :].lstrip()
     if not sentence:
-        raise InputError(f"nothing after the host time in {text!r}", where, LINE_FORMAT)
+        raise InputError(f"nothing after the host time in {excerpt(text)}", where, LINE_FORMAT)
     return float(stamp), sentence
 
 

@@ -103,3 +103,30 @@ def test_cli_exit_status_and_messages(run_dir: Path, tmp_path: Path) -> None:
     assert (
         "unknown key vehicle.antenna_lever_arm: expected one of antenna_lever_arm_m" in bad.stderr
     )
+
+
+@pytest.mark.parametrize("damage", ["empty", "garbage", "binary", "swapped"])
+def test_unreadable_logs_exit_2_naming_what_was_expected(
+    run_dir: Path, tmp_path: Path, damage: str
+) -> None:
+    """SPEC 5: non-zero with a clear message on unreadable input (it exited 0, 0 frames)."""
+    can_log, nmea_log = tmp_path / "imu.log", tmp_path / "gnss.nmea"
+    if damage == "swapped":
+        can_log.write_bytes((run_dir / "gnss.nmea").read_bytes())
+        nmea_log.write_bytes((run_dir / "imu.log").read_bytes())
+    else:
+        junk = {
+            "empty": b"",
+            "garbage": b"hello world\nthis is not a log\n" * 50,
+            "binary": bytes(range(256)) * 40,
+        }[damage]
+        can_log.write_bytes(junk)
+        nmea_log.write_bytes(junk)
+    result = navgw(
+        "replay", "--can", str(can_log), "--nmea", str(nmea_log), "--out", str(tmp_path / "o.log")
+    )
+    assert result.returncode == 2, result.stderr
+    last = result.stderr.strip().splitlines()[-2:]
+    assert f"{can_log}: no IMU sample" in last[0] and "expected candump -L" in last[0]
+    assert f"{nmea_log}: no GNSS fix" in last[1] and "expected NMEA 0183" in last[1]
+    assert max(len(line) for line in result.stderr.splitlines()) < 400

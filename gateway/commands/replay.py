@@ -78,7 +78,8 @@ def summary_text(s: ReplaySummary) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Exit 0 on success; 2 with a message on a bad config or unreadable input."""
+    """Exit 0 on success; 2 with a message on a bad config or unreadable input (a log that
+    gave no IMU sample or no GNSS fix: empty, garbage, binary, or the two swapped)."""
     try:
         config = load_config(args.config)
         if args.engine:
@@ -91,4 +92,26 @@ def run(args: argparse.Namespace) -> int:
         print(f"navgw replay: {err.filename}: {err.strerror}", file=sys.stderr)
         return 2
     print(summary_text(result), file=sys.stderr)
+    unread = unreadable(result, args.can, args.nmea)
+    if unread:
+        print(f"navgw replay: {unread}", file=sys.stderr)
+        return 2
     return 0
+
+
+def unreadable(s: ReplaySummary, can_log: Path, nmea_log: Path) -> str | None:
+    """What could not be read (SPEC 5: exit non-zero), None if both logs gave their data."""
+    missing = []
+    if s.stats.imu_samples == 0:
+        missing.append(
+            f"{can_log}: no IMU sample ({s.imu.frames} IMU bridge frames, {s.imu.ignored} other "
+            f"frames, {s.bad_can_lines} malformed lines); expected candump -L lines of the "
+            "bridge's IMU_GYRO/IMU_ACCEL frames (SPEC 1, 3)"
+        )
+    if s.stats.gnss_fixes == 0:
+        missing.append(
+            f"{nmea_log}: no GNSS fix ({s.gnss.sentences_ok} valid sentences, "
+            f"{s.gnss.checksum_errors} bad checksums, {s.gnss.skipped_bytes} junk bytes, "
+            f"{s.bad_nmea_lines} malformed lines); expected NMEA 0183 GGA/RMC lines (SPEC 2, 3)"
+        )
+    return "\n  ".join(missing) or None
