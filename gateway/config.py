@@ -242,10 +242,28 @@ def config_from_table(table: dict[str, Any], where: str = "config") -> GatewayCo
         for name, cls in {**SECTIONS, **ENGINE_SECTIONS}.items()
     }
     for name in ENGINE_SECTIONS:
-        for key, section in _SHARED.items():
-            if key in table.get(name, {}):
-                raise ConfigError(f"{name}.{key}: set it once, in [{section}] {key}")
+        for key, value in table.get(name, {}).items():
+            if key in _SHARED:
+                raise ConfigError(f"{name}.{key}: set it once, in [{_SHARED[key]}] {key}")
+            if problem := _engine_value_problem(key, getattr(sections[name], key)):
+                raise ConfigError(f"{name}.{key} = {value!r}: expected {problem}")
     return GatewayConfig(**sections)
+
+
+#: Engine tunings that may be zero (a noise term left out) or any value (a bearing).
+_MAY_BE_ZERO = frozenset({"vibration_gyro_dps", "vibration_accel_mps2"})
+_ANY_VALUE = frozenset({"ab_line_bearing_deg"})
+
+
+def _engine_value_problem(key: str, value: object) -> str | None:
+    """Every number of [observer] and [ekf] is a time constant, a noise, a rate, a speed, a
+    gate or a count that the engines divide by or compare against: positive (tau_s = 0 passed
+    the check, then replay died dividing by it)."""
+    if key in _ANY_VALUE or isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    if key in _MAY_BE_ZERO:
+        return None if value >= 0 else "a number >= 0"
+    return None if value > 0 else "a number > 0"
 
 
 def load_config(path: str | Path | None) -> GatewayConfig:

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import enum
+import math
 import sys
 import types
 import typing
@@ -33,6 +34,11 @@ def load_toml(path: str | Path) -> dict[str, Any]:
             return tomllib.load(f)
     except OSError as err:
         raise ConfigError(f"{path}: cannot read config file: {err.strerror}") from None
+    except UnicodeDecodeError as err:
+        raise ConfigError(
+            f"{path}: not a text file (byte 0x{err.object[err.start]:02X} at offset "
+            f"{err.start} is not UTF-8); expected a TOML config"
+        ) from None
     except tomllib.TOMLDecodeError as err:
         raise ConfigError(f"{path}: not valid TOML: {err}") from None
 
@@ -99,6 +105,8 @@ def _convert(value: Any, tp: Any, where: str) -> Any:
             raise ConfigError(f"{where} = {value!r}: expected a table [{where}]")
         return from_table(tp, value, where)
     if tp is float and isinstance(value, int | float) and not isinstance(value, bool):
+        if not math.isfinite(value):  # TOML has nan and inf: no setting means either
+            raise ConfigError(f"{where} = {value!r}: expected a finite number")
         return float(value)
     if tp is int and isinstance(value, int) and not isinstance(value, bool):
         return value

@@ -62,6 +62,14 @@ def test_output_rates_map_to_pgns() -> None:
         ),
         ("[output]\nattitude_hz = -1\n", "output.attitude_hz = -1: expected a value in"),
         ("[gnss\n", "not valid TOML"),
+        ("[observer]\ntau_s = 0\n", "observer.tau_s = 0: expected a number > 0"),
+        ("[ekf]\ngate_sigma = -5.0\n", "ekf.gate_sigma = -5.0: expected a number > 0"),
+        ("[ekf]\nvibration_gyro_dps = -0.1\n", "expected a number >= 0"),
+        ("[observer]\ntau_g_s = nan\n", "observer.tau_g_s = nan: expected a finite number"),
+        (
+            "[vehicle]\nantenna_lever_arm_m = [0, 0, inf]\n",
+            "vehicle.antenna_lever_arm_m[2] = inf: expected a finite number",
+        ),
     ],
 )
 def test_bad_files_name_file_key_value_and_expectation(
@@ -78,3 +86,17 @@ def test_missing_file_and_engine_override(tmp_path: Path) -> None:
     with pytest.raises(ConfigError, match="cannot read config file"):
         load_config(tmp_path / "absent.toml")
     assert GatewayConfig().with_engine(Engine.EKF).estimator.engine is Engine.EKF
+
+
+def test_a_binary_config_is_a_clear_error(tmp_path: Path) -> None:
+    path = tmp_path / "navgw.toml"
+    path.write_bytes(b"\x89PNG\r\n\x1a\n\x00\xff")
+    with pytest.raises(ConfigError, match=r"not a text file .* expected a TOML config"):
+        load_config(path)
+
+
+def test_zero_vibration_and_any_bearing_are_accepted(tmp_path: Path) -> None:
+    path = tmp_path / "navgw.toml"
+    path.write_text("[ekf]\nvibration_gyro_dps = 0.0\n[observer]\nab_line_bearing_deg = -45.0\n")
+    config = load_config(path)
+    assert config.ekf.vibration_gyro_dps == 0.0 and config.observer.ab_line_bearing_deg == -45.0
