@@ -14,7 +14,10 @@ The IMU drives the outputs, so without it nothing would go out: when no sample h
 sends NAVGW_STATUS alone at its rate, saying FAULT with the IMU not ok and the samples missing
 in byte 6 (SPEC 4: an outage is reported, not silent). A gap of :data:`RESTART_GAP_S` or more
 restarts the engine: the motion over it is unknown, and a solution carried across it would be
-a guess.
+a guess. A saturated sample (an axis at the end of its register) is no measurement: it is not
+fed to the engine, NAVGW_STATUS says FAULT from that sample on, and when the IMU is back in
+range the engine restarts (the rotation while saturated is unknown: 2 s of full-scale gyro
+left the attitude 179 deg off, then above 1 deg for 35 s, while STATUS said navigating).
 """
 
 from __future__ import annotations
@@ -59,7 +62,8 @@ class FusionStats:
     gnss_fixes: int = 0
     frames_out: int = 0
     imu_dropped: int = 0  # samples the live loop dropped before the engine (overload, stale)
-    engine_restarts: int = 0  # after a gap of RESTART_GAP_S in the IMU stream
+    engine_restarts: int = 0  # after a gap of RESTART_GAP_S in the IMU stream, or saturation
+    imu_saturated: int = 0  # samples withheld from the engine: an axis at its range's end
 
 
 class FusionCore:
@@ -83,6 +87,8 @@ class FusionCore:
         self._imu_counters = imu_counters or ImuCounters()
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
         self._last_sample: ImuSample | None = None
+        self._saturated = False  # saturated samples since the last good one
+        self._last_saturation_log = -math.inf
 
     @classmethod
     def from_config(
@@ -129,20 +135,28 @@ class FusionCore:
     def on_imu(self, sample: ImuSample) -> Iterator[can.Message]:
         """Propagate with one sample, then send whatever is due at its time."""
         self.stats.imu_samples += 1
+        if sample.saturated:
+            self.stats.imu_saturated += 1
+            if not self._saturated and sample.t - self._last_saturation_log >= 10.0:
+                log.warning(
+                    "IMU saturated at t=%.3f (an axis at the end of its range): attitude "
+                    "unknown, FAULT until the engine has re-aligned", sample.t,
+                )  # fmt: skip
+                self._last_saturation_log = sample.t
+            self._saturated = True
+            return self._counted(chain(self.claimer.poll(sample.t), self._fault(sample.t)))
         last = self._last_sample
-        if (
-            last is not None
-            and abs(sample.t - last.t) >= RESTART_GAP_S
-            and self._make_engine is not None
-        ):
+        gap = last is not None and abs(sample.t - last.t) >= RESTART_GAP_S
+        if (gap or self._saturated) and self._make_engine is not None:
             self.engine = self._make_engine()
             self.guard.forget_track()
             self.stats.engine_restarts += 1
-            log.warning(
-                "IMU samples resumed %.3f s after the last one at t=%.3f: the engine restarts "
-                "(attitude and position are re-aligned before anything is sent)",
-                sample.t - last.t, last.t,
-            )  # fmt: skip
+            if gap and last is not None:
+                log.warning(
+                    "IMU samples resumed %.3f s after the last one at t=%.3f: the engine "
+                    "restarts (re-aligned before anything is sent)", sample.t - last.t, last.t,
+                )  # fmt: skip
+        self._saturated = False
         self._last_sample = sample
         self.engine.imu(sample)
         out: Iterable[can.Message] = self.claimer.poll(sample.t)
@@ -162,8 +176,16 @@ class FusionCore:
     def _silent_status(self, now: float) -> Iterable[can.Message]:
         """NAVGW_STATUS alone, FAULT, when no IMU sample has come for IMU_SILENT_S."""
         last = self._last_sample
-        if not self.claimer.claimed or (last is not None and now - last.t < IMU_SILENT_S):
+        if last is not None and now - last.t < IMU_SILENT_S:
             return ()
+        return self._fault(now)
+
+    def _fault(self, now: float) -> Iterable[can.Message]:
+        """NAVGW_STATUS alone at its rate: FAULT, IMU not ok, the samples missing since the
+        last good one in byte 6."""
+        if not self.claimer.claimed:
+            return ()
+        last = self._last_sample
         sol = self.engine.solution()
         silent = Solution(
             t=now,

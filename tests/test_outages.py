@@ -156,3 +156,38 @@ def test_while_coasting_the_fix_fields_say_dead_reckoning(tmp_path: Path, engine
     for m in gnss:
         assert m.fields["method"] in ("Estimated (DR) mode", 6), m.fields["method"]
         assert m.fields["numberOfSvs"] is None
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_a_saturated_imu_is_a_fault_at_once_then_the_engine_realigns(
+    tmp_path: Path, engine: Engine
+) -> None:
+    """Gyro x/y and accel z at full scale for 2 s (the fault table): before, the attitude
+    went 179 deg wrong while STATUS said navigating for the first second."""
+    span = (60.0, 62.0)
+    full = np.array([np.radians(300.0), -np.radians(300.0), 0.0])
+    imu = [
+        dataclasses.replace(
+            s, w_ib_b=full, f_ib_b=np.array([0.0, 0.0, -8.0 * 9.80665]), saturated=True
+        )
+        if span[0] <= motion_time(s.t) < span[1]
+        else s
+        for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    ]
+    fixes = gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    log = tmp_path / "out.log"
+    core = run(log, engine, imu, fixes)
+    assert core.stats.imu_saturated == round(2.0 * 204.8) and core.stats.engine_restarts == 1
+    frames = status(log)
+    assert {Mode(d[2]) for t, d in frames if span[0] <= t < span[1]} == {Mode.FAULT}
+    decoded = decode_log(log)
+    attitude = [m for m in decoded if m.id == "attitude"]
+    assert not [m for m in attitude if span[0] <= motion_time(m.t) < span[1]]
+    tilts = [
+        max(abs(m.fields["roll"]), abs(m.fields["pitch"]))
+        for m in attitude
+        if m.fields["roll"] is not None
+    ]
+    assert tilts and np.degrees(max(tilts)) < 1.0  # flat ground: level throughout
+    after = [Mode(d[2]) for t, d in frames if span[1] + 12.0 <= t < span[1] + 30.0]
+    assert set(after) == {Mode.NAVIGATING}
