@@ -83,7 +83,12 @@ class OutputScheduler:
                 self._last_slot[pgn] = slot
                 pgns.append(pgn)
         self._next_due_t = min(
-            ((self._last_slot[p] + 1 - _GRID_TOLERANCE) / r for p, r in self.rates_hz.items()),
+            (
+                (self._last_slot[p] + 1 - _GRID_TOLERANCE) / r
+                if p in self._last_slot
+                else -math.inf
+                for p, r in self.rates_hz.items()
+            ),
             default=math.inf,
         )
         return pgns

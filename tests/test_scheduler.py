@@ -134,3 +134,15 @@ def test_bus_load_of_the_default_output_set() -> None:
     assert bus_load(DEFAULT_RATES_HZ, payload_bytes, worst_case_stuffing=False) == pytest.approx(
         0.132048
     )
+
+
+def test_a_pgn_alone_first_leaves_the_others_due() -> None:
+    """NAVGW_STATUS alone (a silent IMU) before any other PGN was ever sent."""
+    scheduler = OutputScheduler()
+    status = list(
+        scheduler.frames(Solution(t=10.0, mode=Mode.FAULT), LOOP, only=(Pgn.NAVGW_STATUS,))
+    )
+    assert [FrameId.parse(f.arbitration_id).pgn for f in status] == [Pgn.NAVGW_STATUS]
+    assert scheduler.is_due(10.001)
+    later = list(scheduler.frames(Solution(t=10.001, mode=Mode.NAVIGATING), LOOP))
+    assert Pgn.ATTITUDE in {FrameId.parse(f.arbitration_id).pgn for f in later}
