@@ -18,7 +18,7 @@ def add_subparser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser
         "sim",
         help="simulate a field run: IMU CAN log, NMEA log and truth",
         description="Simulate a field run and write imu.log (candump -L), gnss.nmea "
-        "(host-stamped NMEA) and truth.npz into OUT_DIR.\n\nscenarios:\n" + listing,
+        "(host-stamped NMEA) and truth.npz into the --out directory.\n\nscenarios:\n" + listing,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     p.add_argument("scenario", nargs="?", default="field", help="built-in scenario name")
