@@ -143,18 +143,30 @@ class DemoSummary:
             f"({self.sim_s / max(self.wall_s, 1e-9):.1f}x real time), final mode "
             f"{self.final_mode.name.lower()}, navigating after {nav}",
             f"  inputs      {self.imu_samples} IMU samples ({self.imu_lost} lost), "
-            f"{self.gnss_fixes} GNSS fixes, {self.inputs_dropped} dropped by overload",
+            f"{self.gnss_fixes} GNSS fixes, {self.inputs_dropped} dropped by overload (IMU "
+            "samples the gateway got too late to use)",
             f"  output      {self.frames_sent} frames on the ISOBUS -> {self.output_log}",
             f"  bias error  gyro x {g[0]:+.4f} y {g[1]:+.4f} z {g[2]:+.4f} deg/s, "
             f"accel x {a[0]:+.4f} y {a[1]:+.4f} m/s^2 (final estimate minus truth)",
             f"  attitude    RMS error after alignment (+{SETTLE_S:.0f} s): roll {r[0]:.3f}, "
-            f"pitch {r[1]:.3f}, heading {r[2]:.3f} deg",
+            f"pitch {r[1]:.3f}, heading {r[2]:.3f} deg"
+            if not math.isnan(r[0])
+            else f"  attitude    RMS error not measured: the run ended before alignment "
+            f"+ {SETTLE_S:.0f} s (a longer --minutes)",
             f"  position    reference point horizontal RMS error after alignment: "
-            f"{self.ref_point_rms_m:.3f} m",
+            f"{self.ref_point_rms_m:.3f} m"
+            if not math.isnan(self.ref_point_rms_m)
+            else "  position    RMS error not measured (see attitude)",
             f"  plot        {self.plot}"
             if self.plot
             else f"  plot        skipped: {self.plot_note}",
         ]
+        if self.inputs_dropped > 0.01 * max(self.imu_samples, 1):
+            lines.append(
+                "  note        this host could not keep up with the demo's speed: the gateway "
+                "drops IMU samples it gets too late to send (stale frames would be wrong "
+                "frames) and says DEGRADED; a lower --speed shows it as on a vehicle"
+            )
         return "\n".join(lines)
 
 
@@ -323,7 +335,7 @@ def summarise(
         imu_lost=imu.lost,
         gnss_fixes=core.gnss_fixes,
         frames_sent=service.stats.frames_sent,
-        inputs_dropped=service.inbox.overloads,
+        inputs_dropped=service.core.stats.imu_dropped,
         final_mode=service.core.solution().mode,
         navigating_after_s=nav[0] if nav else None,
         bias_g_error_dps=g_err,
