@@ -177,6 +177,8 @@ class ImuCounters:
     saturated: int = 0  # samples with some axis at the end of its register range
     no_new_data: int = 0  # samples with an ND bit clear
     reanchors: int = 0  # time anchor restarts (DEC change, early arrivals, missed SEQ wraps)
+    seq_errors: int = 0  # samples on time for the next SEQ but carrying another: taken as it
+    seq_restarts: int = 0  # the bridge's SEQ counter restarted: counted from its new value
 
 
 class WarningKind(Enum):
@@ -191,6 +193,7 @@ class WarningKind(Enum):
     SATURATED = "saturated axis"
     NO_NEW_DATA = "stale data"
     REANCHOR = "time re-anchored"
+    SEQ = "SEQ discontinuity"
 
 
 @dataclass
@@ -269,6 +272,9 @@ class ImuDecoder:
         self._dec: int | None = None
         self._dt = 0.0
         self._half_wrap = 0.0  # 128 dt
+        self._seq_tolerance_s = 0.0  # how early a sample may arrive against its sample clock
+        self._seq_taken = 0  # the SEQ the sample being decoded is counted as
+        self._shift_pending: int | None = None  # SEQ offset of a discontinuity, if one just came
         self._n_last = 0  # absolute index of the last emitted sample
         self._n_first = 0
         self._seq_last = 0
@@ -356,6 +362,9 @@ class ImuDecoder:
             start = self._dec is None
             self._dec, self._dt = gyro.dec, sample_period_s(gyro.dec)
             self._half_wrap = 128 * self._dt
+            # the anchor follows the earliest arrivals, so a real sample is never much earlier
+            # than its clock says: two periods and 2 ms of jitter
+            self._seq_tolerance_s = 2.0 * self._dt + 0.002
             n = 0 if start else self._n_last + 1
             self._n_first = n
             self._missing.clear()
@@ -367,7 +376,7 @@ class ImuDecoder:
             if step is None:
                 return []
             n = self._track(seq, a, step)
-        self._n_last, self._seq_last, self._a_last = n, seq, a
+        self._n_last, self._seq_last, self._a_last = n, self._seq_taken, a
         if len(self._missing) > 512:
             self._missing = {i for i in self._missing if i > n - 256}
         alarm = gyro.alarm or accel.alarm
@@ -413,6 +422,10 @@ class ImuDecoder:
         """The index of sample ``seq`` arriving at ``a`` (None if late); counts SEQ gaps lost."""
         n_last = self._n_last
         k = (seq - self._seq_last) & 0xFF
+        self._seq_taken = seq
+        if 2 <= k < 128 and a - (n_last + k) * self._dt - self._offset < -self._seq_tolerance_s:
+            return self._seq_discontinuity(seq, a)
+        self._shift_pending = None
         if k == 0 or k >= 128:
             # Behind by SEQ (a duplicate, or out of order) unless the step ahead is causal: not
             # sampled more than a quarter wrap after it arrived; for an unchanged SEQ only after
@@ -423,6 +436,13 @@ class ImuDecoder:
             ahead = n_last + (k or 256)
             back = ahead - 256
             late_ahead = a - ahead * self._dt - self._offset
+            if (
+                k != 0
+                and late_ahead < -0.5 * self._half_wrap
+                and back not in self._missing
+                and a - (n_last + 1) * self._dt - self._offset >= -self._seq_tolerance_s
+            ):
+                return self._seq_discontinuity(seq, a, behind=True)
             if (
                 late_ahead < -0.5 * self._half_wrap
                 or (k == 0 and a - self._a_last <= self._half_wrap)
@@ -442,6 +462,39 @@ class ImuDecoder:
                 f"(id 0x{self.config.ids.gyro:X}); expected SEQ {(self._seq_last + 1) % 256}",
             )
         return n
+
+    def _seq_discontinuity(self, seq: int, a: float, behind: bool = False) -> int:
+        """A SEQ that the sample cannot carry: a step ahead it cannot have made (it arrived
+        before a sample that far ahead would have been taken) or, ``behind``, a SEQ already
+        passed that fills no gap, and either way on time for the next sample. So it is the
+        next one and its SEQ is wrong: a lone outlier (the SEQ after it is the expected one)
+        or the bridge restarted its counter (the next SEQ follows this one: counted from then
+        on; a SEQ behind is counted from at once, so a duplicate of an old sample costs one
+        sample's data, not the samples after it). Taken as a step, an outlier of +37 cost 36
+        phantom losses and 36 good samples dropped as out of order, and a restart 129 back
+        129 samples dropped as duplicates."""
+        expected = (self._seq_last + 1) & 0xFF
+        shift = (seq - expected) & 0xFF
+        if behind or shift == self._shift_pending:
+            self.counters.seq_restarts += 1
+            self._shift_pending = None
+            self._warn(
+                WarningKind.SEQ,
+                a,
+                f"IMU SEQ restarted: SEQ {seq} on time where {expected} was due; counting "
+                "from it (expected a continuous SEQ)",
+            )
+        else:
+            self.counters.seq_errors += 1
+            self._shift_pending = shift
+            self._seq_taken = expected
+            self._warn(
+                WarningKind.SEQ,
+                a,
+                f"IMU SEQ {seq} where {expected} was due, on time for it: taken as SEQ "
+                f"{expected} (a corrupted counter, or the bridge restarted)",
+            )
+        return self._n_last + 1
 
     def _track(self, seq: int, a: float, n: int) -> int:
         """Update the anchor with sample ``n`` arriving at ``a``; returns n plus missed wraps."""

@@ -331,3 +331,33 @@ def test_frequent_runs_of_128_to_255_lost_samples_are_losses_not_late_samples() 
     dec, s = decode(host(indexed, drop=gone))
     err = check(dec, s, out, np.setdiff1d(np.arange(len(out)), sorted(gone)), lost=len(gone))
     assert np.abs(err).max() < 1e-6
+
+
+def _with_seq(m: can.Message, seq: int) -> can.Message:
+    data = bytearray(m.data)
+    data[6] = seq & 0xFF
+    return can.Message(
+        timestamp=m.timestamp, arbitration_id=m.arbitration_id, is_extended_id=True, data=data
+    )
+
+
+@pytest.mark.parametrize(("change", "first"), [(37, 400), (-129, 400), (-5, 700), (90, 50)])
+@pytest.mark.parametrize("lasting", [False, True])
+def test_a_seq_outlier_or_a_bridge_restart_drops_nothing(
+    change: int, first: int, lasting: bool
+) -> None:
+    """One sample's SEQ off by ``change`` (a corrupted counter), or every SEQ from then on
+    (the bridge restarted): before, +37 dropped 36 good samples and counted 37 phantom
+    losses, 129 back dropped 129 samples and shifted the clock."""
+    out, indexed = stream(6.0)
+    msgs = [
+        _with_seq(m, m.data[6] + change) if k == first or (lasting and k > first) else m
+        for (k, _), m in zip(indexed, host(indexed), strict=True)
+    ]
+    dec, s = decode(msgs)
+    c = dec.counters
+    assert (c.samples, c.lost, c.duplicates, c.out_of_order, c.reanchors) == (len(out), 0, 0, 0, 0)
+    assert 1 <= c.seq_errors + c.seq_restarts <= 3  # counted and warned
+    np.testing.assert_allclose(
+        [x.t for x in s], out.t + BridgeConfig().latency_s - 0.0005, atol=1e-6
+    )
