@@ -6,6 +6,9 @@ the encoders under test.
 
 from __future__ import annotations
 
+import itertools
+import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,3 +69,226 @@ def position_errors_m(
     ned = lla_to_ned(lla, truth.origin_lla)
     true = np.column_stack([np.interp(t, truth.t, truth.pos_ned_m[:, i]) for i in range(2)])
     return np.hypot(*(ned[:, :2] - true).T)
+
+
+@dataclass(frozen=True)
+class Plausible:
+    """How far from the truth a decoded frame may be before it is absurd, not just inaccurate.
+
+    These are gross-error bounds, far outside what a working gateway outputs at any time
+    (alignment included) and far inside what a wrong frame shows (a position at the antipode,
+    a roll off by 8 deg); the tests' RMS bounds check accuracy. Each frame is compared with
+    the truth anywhere in ``[t - lag_s, t + lead_s]`` of its time stamp ``t``: a live frame is
+    stamped when it is received, after the input it was computed from (more so on a loaded
+    machine, and ``speed`` times more in a faster-than-real-time test).
+    """
+
+    position_m: float = 5.0  # reference point horizontal, from the truth track
+    altitude_m: float = 10.0  # 129029, ellipsoidal height
+    tilt_deg: float = 3.0  # roll and pitch
+    heading_deg: float = 10.0  # yaw (127257), heading (127250), once available
+    rate_dps: float = 5.0  # 127251
+    sog_mps: float = 1.0  # 129026
+    lag_s: float = 0.5
+    lead_s: float = 0.05
+
+
+#: Physical ranges of the fields :func:`implausible_frames` reads, per canboat message id.
+_RANGES: dict[str, dict[str, tuple[float, float]]] = {
+    "attitude": {"roll": (-math.pi, math.pi), "pitch": (-math.pi / 2, math.pi / 2),
+                 "yaw": (-math.pi, 2 * math.pi)},
+    "rateOfTurn": {"rate": (-math.pi, math.pi)},
+    "vesselHeading": {"heading": (0.0, 2 * math.pi)},
+    "positionRapidUpdate": {"latitude": (-90.0, 90.0), "longitude": (-180.0, 180.0)},
+    "gnssPositionData": {"latitude": (-90.0, 90.0), "longitude": (-180.0, 180.0),
+                         "altitude": (-1000.0, 10000.0)},
+    "cogSogRapidUpdate": {"cog": (0.0, 2 * math.pi), "sog": (0.0, 50.0)},
+}  # fmt: skip
+
+
+_SLACK = 1e-3  # a range's ends as encoded (yaw -pi, heading 2 pi) decode a hair outside
+
+
+def _number(value: object) -> float | None:
+    """The field as a float, None if the frame says "not available"; NaN if not a number."""
+    if value is None:
+        return None
+    if isinstance(value, int | float) and not isinstance(value, bool):
+        return float(value)
+    return math.nan
+
+
+#: NAVGW_STATUS (PGN 0xFF22), byte 2 mode: DEGRADED (4) or FAULT (5) excuse inaccuracy.
+STATUS_PGN = 0xFF22
+DEGRADED = 4
+
+
+def status_modes(path: str | Path) -> list[tuple[float, int]]:
+    """(time, mode byte) of every NAVGW_STATUS frame of a candump log, any source address."""
+    return [
+        (float(f.timestamp), f.data[2])
+        for f in read_candump(path)
+        if (f.arbitration_id >> 8) & 0x3FFFF == STATUS_PGN and len(f.data) > 2
+    ]
+
+
+def implausible_frames(
+    messages: list[Decoded],
+    truth: Truth,
+    limits: Plausible = Plausible(),
+    status: list[tuple[float, int]] | None = None,
+) -> list[str]:
+    """One line per navigation frame that is not a plausible reading of the truth.
+
+    Checked: 127257 attitude, 127251 rate of turn, 127250 heading, 129025 and 129029
+    positions (and 129029's height), 129026 speed over ground. A field that is "not
+    available" is plausible; one that is not finite, outside its physical range, or farther
+    from the truth than ``limits`` (everywhere in the frame's time window) is not. Frames
+    outside the truth's time span are checked against its ends. With ``status`` (from
+    :func:`status_modes`), a frame within 0.1 s of a NAVGW_STATUS saying DEGRADED or FAULT is
+    held to range and finiteness only: SPEC 4 lets a value be off while STATUS says so.
+    """
+    from gateway.geodesy import lla_to_ned
+
+    t_truth = truth.t
+    yaw_rate = np.gradient(np.unwrap(truth.rpy_rad[:, 2]), t_truth)
+    speed = np.hypot(truth.vel_ned_mps[:, 0], truth.vel_ned_mps[:, 1])
+    out: list[str] = []
+
+    def window(t: float) -> slice:
+        lo, hi = np.searchsorted(t_truth, [t - limits.lag_s, t + limits.lead_s])
+        lo = min(int(lo), len(t_truth) - 1)
+        return slice(lo, max(int(hi), lo + 1))
+
+    def angle_off_deg(value: float, true: npt.NDArray[np.float64]) -> float:
+        return float(np.degrees(np.min(np.abs((value - true + np.pi) % (2 * np.pi) - np.pi))))
+
+    told = np.array([t for t, mode in status or () if mode >= DEGRADED])
+
+    def excused(t: float) -> bool:
+        return bool(len(told)) and bool(np.min(np.abs(told - t)) <= 0.1)
+
+    def bad(m: Decoded, text: str) -> None:
+        out.append(f"t={m.t - t_truth[0]:.3f} s {m.pgn} {m.id}: {text}")
+
+    for m in messages:
+        ranges = _RANGES.get(m.id, {})
+        if not ranges:
+            continue
+        values = {k: _number(m.fields.get(k)) for k in ranges}
+        broken = [
+            f"{k}={v}" for k, v in values.items()
+            if v is not None
+            and not (math.isfinite(v) and ranges[k][0] - _SLACK <= v <= ranges[k][1] + _SLACK)
+        ]  # fmt: skip
+        if broken:
+            bad(m, "out of range: " + ", ".join(broken))
+            continue
+        if excused(m.t):
+            continue
+        w = window(m.t)
+        angles = {"attitude": ("roll", "pitch", "yaw"), "vesselHeading": (None, None, "heading")}
+        if m.id in angles:
+            for i, k in enumerate(angles[m.id]):
+                v = values.get(k) if k else None
+                limit = limits.tilt_deg if i < 2 else limits.heading_deg
+                if v is not None and (off := angle_off_deg(v, truth.rpy_rad[w, i])) > limit:
+                    bad(m, f"{k} {math.degrees(v):.2f} deg, {off:.2f} deg from the truth")
+        elif m.id == "rateOfTurn":
+            v = values["rate"]
+            if v is not None:
+                off = float(np.degrees(np.min(np.abs(v - yaw_rate[w]))))
+                if off > limits.rate_dps:
+                    bad(m, f"rate {math.degrees(v):.2f} deg/s, {off:.2f} deg/s from the truth")
+        elif m.id == "cogSogRapidUpdate":
+            v = values["sog"]
+            if v is not None and (off := float(np.min(np.abs(v - speed[w])))) > limits.sog_mps:
+                bad(m, f"SOG {v:.2f} m/s, {off:.2f} m/s from the truth")
+        else:  # positions
+            lat, lon = values["latitude"], values["longitude"]
+            if (lat is None) != (lon is None):
+                bad(m, f"latitude {lat}, longitude {lon}: half a position")
+                continue
+            if lat is None or lon is None:
+                continue
+            h = values.get("altitude")
+            ned = lla_to_ned(np.array([[lat, lon, 0.0 if h is None else h]]), truth.origin_lla)[0]
+            off = float(np.min(np.hypot(*(truth.pos_ned_m[w, :2] - ned[:2]).T)))
+            if off > limits.position_m:
+                bad(m, f"lat {lat:.7f} lon {lon:.7f}, {off:.1f} m from the truth track")
+            elif h is not None:
+                off_h = float(np.min(np.abs(truth.pos_ned_m[w, 2] - ned[2])))
+                if off_h > limits.altitude_m:
+                    bad(m, f"altitude {h:.2f} m, {off_h:.2f} m from the truth")
+    return out
+
+
+@dataclass(frozen=True)
+class Cadence:
+    """How a consumer saw one output over an interval (see :func:`cadence`)."""
+
+    frames: int  # frames with the field available
+    longest_gap_s: float  # the longest time without one, input pauses not counted
+    active_s: float  # the interval's length less the input pauses in it
+
+
+def cadence(
+    messages: list[Decoded],
+    msg_id: str,
+    field: str,
+    start: float,
+    end: float,
+    pauses: Sequence[tuple[float, float]] = (),
+) -> Cadence:
+    """The ``msg_id`` frames with ``field`` available stamped in ``[start, end]``, and the
+    longest time in that interval without one (from ``start`` to the first, between two,
+    from the last to ``end``).
+
+    ``pauses``: intervals in which the gateway's inputs paused (a test's player stalled): no
+    output can go on without its inputs, so their time counts neither in gaps nor in
+    ``active_s``."""
+    t = np.array(
+        [m.t for m in messages
+         if m.id == msg_id and start <= m.t <= end and m.fields.get(field) is not None]
+    )  # fmt: skip
+    edges = np.concatenate([[start], np.sort(t), [end]])
+
+    def paused(a: float, b: float) -> float:
+        return sum(max(0.0, min(b, p1) - max(a, p0)) for p0, p1 in pauses)
+
+    gaps = [b - a - paused(a, b) for a, b in itertools.pairwise(edges)]
+    return Cadence(len(t), float(max(gaps)), end - start - paused(start, end))
+
+
+def pauses(times: Sequence[float], min_s: float) -> list[tuple[float, float]]:
+    """The intervals longer than ``min_s`` between consecutive ``times`` (sorted)."""
+    t = np.asarray(times, dtype=float)
+    i = np.flatnonzero(np.diff(t) > min_s)
+    return [(float(t[k]), float(t[k + 1])) for k in i]
+
+
+#: The outputs a guidance controller steers by, each at 50 Hz by default: (message, field).
+STEERING_OUTPUTS = (("attitude", "roll"), ("positionRapidUpdate", "latitude"))
+
+
+def cadence_problems(
+    messages: list[Decoded],
+    start: float,
+    end: float,
+    max_gap_s: float,
+    pauses: Sequence[tuple[float, float]] = (),
+    rate_hz: float = 50.0,
+    share: float = 0.95,
+) -> list[str]:
+    """What a guidance controller would miss in ``[start, end]``: each of
+    :data:`STEERING_OUTPUTS` must come at ``share`` of ``rate_hz`` at least, never more than
+    ``max_gap_s`` apart (see :func:`cadence` for ``pauses``)."""
+    out = []
+    for msg_id, field in STEERING_OUTPUTS:
+        c = cadence(messages, msg_id, field, start, end, pauses)
+        if c.frames < share * rate_hz * c.active_s:
+            out.append(f"{msg_id}: {c.frames} frames in {c.active_s:.2f} s, expected "
+                       f"{share * rate_hz * c.active_s:.0f} at least")  # fmt: skip
+        if c.longest_gap_s > max_gap_s:
+            out.append(f"{msg_id}: {c.longest_gap_s:.3f} s without one (at most {max_gap_s} s)")
+    return out

@@ -9,10 +9,14 @@ import time
 from pathlib import Path
 from typing import IO
 
+import pytest
+
 import dbc
 from sim_bus.canlog import read_candump
 from tests.n2k_check import decode_log
 from tests.vcan.conftest import candump_argv
+
+pytestmark = pytest.mark.live
 
 
 def _first_seconds(sim_run: Path, tmp_path: Path, seconds: float) -> Path:
