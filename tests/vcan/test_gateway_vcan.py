@@ -206,7 +206,7 @@ def _from_gateway(session: Session) -> list[can.Message]:
     """Frames from the gateway's addresses, less the competing claim cansend put there."""
     return [
         m for m in session.frames()
-        if (m.arbitration_id & 0xFF) in (0x1C, 0x80) and bytes(m.data) != bytes(8)
+        if (m.arbitration_id & 0xFF) in (0x1C, 0x81) and bytes(m.data) != bytes(8)
     ]  # fmt: skip
 
 
@@ -263,8 +263,9 @@ def test_a_lower_name_takes_our_address_and_we_move(session: Session) -> None:
     late = [f"{m.timestamp - contend:.3f} s {m.arbitration_id:08X}" for m in after
             if m.arbitration_id & 0xFF == 0x1C]  # fmt: skip
     assert not late, late[:10]  # silent at 0x1C ...
-    assert any(m.arbitration_id == 0x18EEFF80 for m in after)  # ... claimed 128 ...
-    assert any(m.arbitration_id == 0x09F11380 for m in after)  # ... and sends from there
+    # ... claimed 0x81, the first free address of 128-247 (0x80 is the IMU bridge's) ...
+    assert any(m.arbitration_id == 0x18EEFF81 for m in after)
+    assert any(m.arbitration_id == 0x09F11381 for m in after)  # ... and sends from there
 
 
 def test_a_request_for_address_claim_is_answered(session: Session) -> None:
@@ -273,7 +274,7 @@ def test_a_request_for_address_claim_is_answered(session: Session) -> None:
         m for m in _from_gateway(session)
         if m.arbitration_id >> 8 & 0x3FFFF == 0x0EEFF and t <= m.timestamp < t + 1.0
     ]  # fmt: skip
-    assert len(answers) == 1 and answers[0].arbitration_id == 0x18EEFF80
+    assert len(answers) == 1 and answers[0].arbitration_id == 0x18EEFF81
 
 
 def test_interface_down_and_up_is_survived_and_sending_resumes(session: Session) -> None:
