@@ -82,7 +82,6 @@ class FusionCore:
         self.scheduler = scheduler
         self.claimer = claimer
         self.guard = OutputGuard()
-        self.output: Solution | None = None  # the last solution sent, as the guard let it out
         self.stats = FusionStats()
         self._imu_counters = imu_counters or ImuCounters()
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
@@ -161,8 +160,8 @@ class FusionCore:
         self.engine.imu(sample)
         out: Iterable[can.Message] = self.claimer.poll(sample.t)
         if self.claimer.claimed and self.scheduler.is_due(sample.t):
-            self.output = self.guard.check(self.engine.solution())
-            out = chain(out, self.scheduler.frames(self.output, self.loop_status(sample.t)))
+            sent = self.guard.check(self.engine.solution())
+            out = chain(out, self.scheduler.frames(sent, self.loop_status(sample.t)))
         return self._counted(out)
 
     def on_bus_frame(self, msg: can.Message, now: float) -> Iterator[can.Message]:
