@@ -69,6 +69,7 @@ from can.typechecking import CanFilter
 import dbc
 from dbc.fast_decode import LittleEndianDecoder
 from drivers.canbus import FrameReader
+from drivers.log_limit import LogLimiter
 from drivers.samples import ImuAux, ImuSample
 from gateway.attitude import dcm_from_rpy_array
 from sim_bus.canlog import CandumpReader, read_candump
@@ -196,12 +197,6 @@ class WarningKind(Enum):
     SEQ = "SEQ discontinuity"
 
 
-@dataclass
-class _RateLimit:
-    last_t: float = -math.inf
-    suppressed: int = 0
-
-
 _TRIADS = {ImuFrame.GYRO: "GYRO", ImuFrame.ACCEL: "ACCL"}
 #: Frames a half waits for its partner, at least and at most (module docstring, Pairing).
 _PAIR_MIN_FRAMES = 2
@@ -268,7 +263,7 @@ class ImuDecoder:
         base = min(s.start for s in diag)
         self._diag_bits = {s.name: s.start - base for s in diag}
         self._pending: dict[tuple[ImuFrame, int], _Half] = {}
-        self._warned: dict[WarningKind, _RateLimit] = {}
+        self._log = LogLimiter(log, self.config.warn_interval_s)
         self._dec: int | None = None
         self._dt = 0.0
         self._half_wrap = 0.0  # 128 dt
@@ -639,17 +634,7 @@ class ImuDecoder:
 
     def _warn(self, kind: WarningKind, t: float, text: str) -> None:
         """Log at most one warning of ``kind`` per ``warn_interval_s`` of frame time."""
-        state = self._warned.setdefault(kind, _RateLimit())
-        if math.isfinite(t) and t - state.last_t < self.config.warn_interval_s:
-            state.suppressed += 1
-            return
-        more = (
-            f" ({state.suppressed} more {kind.value} warnings suppressed)"
-            if state.suppressed
-            else ""
-        )
-        log.warning("%s%s", text, more)
-        state.last_t, state.suppressed = t, 0
+        self._log.warning(t, text, kind)
 
 
 async def read_bus(

@@ -44,6 +44,7 @@ from os import PathLike
 
 import pynmea2
 
+from drivers.log_limit import LogLimiter
 from drivers.samples import FixQuality, GnssFix
 from sim_bus.nmealog import NmeaLogReader, read_nmea_log
 
@@ -289,7 +290,6 @@ class NmeaDecoder:
         self.on_sentence = on_sentence  # sees every framed sentence first (input recording)
         self.require_checksum = require_checksum
         self.max_sentence_len = max_sentence_len
-        self.warn_interval_s = warn_interval_s
         self.counters = NmeaCounters()
         self._offset = 0  # bytes fed so far
         self._record: int | None = None  # log record being decoded (feed_line)
@@ -302,8 +302,7 @@ class NmeaDecoder:
         self._last_tod_s: float | None = None
         self._fixes: list[GnssFix] = []
         self._now = 0.0  # input time for warning rate limits
-        self._last_warn: dict[str, float] = {}
-        self._suppressed: dict[str, int] = {}
+        self._log = LogLimiter(log, warn_interval_s)
 
     # --- input ---------------------------------------------------------------------------------
 
@@ -572,15 +571,7 @@ class NmeaDecoder:
 
     def _warn(self, kind: str, message: str) -> None:
         """Log at most one warning per kind per ``warn_interval_s`` of input time."""
-        last = self._last_warn.get(kind)
-        if last is not None and last <= self._now < last + self.warn_interval_s:
-            self._suppressed[kind] = self._suppressed.get(kind, 0) + 1
-            return
-        suppressed = self._suppressed.pop(kind, 0)
-        if suppressed:
-            message += f" [{suppressed} more like this since the last report]"
-        self._last_warn[kind] = self._now
-        log.warning("%s", message)
+        self._log.warning(self._now, message, kind)
 
 
 def _num(values: dict[str, Value] | None, name: str) -> float | None:

@@ -265,7 +265,7 @@ def test_warnings_rate_limited_per_kind_over_input_time(caplog: pytest.LogCaptur
         "/dev/ttyUSB0 byte 0",
         "/dev/ttyUSB0 byte 54",
     ]
-    assert caplog.messages[1].endswith("[2 more like this since the last report]")
+    assert caplog.messages[1].endswith("(2 more since the last report)")
 
 
 def test_read_fixes_from_log_uses_host_stamps(tmp_path: Path) -> None:
