@@ -58,6 +58,17 @@ class ImuAux:
     smpl_prd: int
 
 
+#: Default GNSS 1-sigma per fix quality when the receiver sends no GST: (horizontal position
+#: per axis m, vertical position m, horizontal velocity per axis m/s). Typical receiver figures.
+DEFAULT_GNSS_SIGMAS: dict[int, tuple[float, float, float]] = {
+    1: (1.5, 3.0, 0.10),  # single point
+    2: (0.5, 1.0, 0.05),  # DGNSS
+    4: (0.02, 0.04, 0.02),  # RTK fixed
+    5: (0.2, 0.4, 0.04),  # RTK float
+    6: (3.0, 6.0, 0.3),  # dead reckoning
+}
+
+
 @dataclass(frozen=True, slots=True)
 class GnssFix:
     """One receiver epoch, combining the NMEA sentences that describe it.
@@ -84,6 +95,17 @@ class GnssFix:
     sigma_e_m: float | None = None  # GST 1-sigma east
     sigma_d_m: float | None = None  # GST 1-sigma down
     mode: str | None = None  # RMC/VTG mode indicator: A, D, R, F, E, N, ...
+
+    @property
+    def position_sigma_m(self) -> tuple[float, float, float] | None:
+        """Position 1-sigma north, east, down: GST when sent, else the quality's typical
+        figure (:data:`DEFAULT_GNSS_SIGMAS`); None for a quality without one."""
+        if self.sigma_n_m is not None and self.sigma_e_m is not None and self.sigma_d_m is not None:
+            return (self.sigma_n_m, self.sigma_e_m, self.sigma_d_m)
+        if int(self.quality) in DEFAULT_GNSS_SIGMAS:
+            h, v, _ = DEFAULT_GNSS_SIGMAS[int(self.quality)]
+            return (h, h, v)
+        return None
 
     @property
     def vel_ne_mps(self) -> tuple[float, float] | None:

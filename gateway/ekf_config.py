@@ -23,16 +23,6 @@ SQRT_HOUR_S = 60.0  # sqrt(3600 s)
 #: a datasheet "in-run bias stability" B is a Gauss-Markov sigma of B / 0.6174.
 GM_ALLAN_FLOOR = 0.6174
 
-#: Default GNSS 1-sigma per fix quality when the receiver sends no GST: (horizontal position
-#: per axis m, vertical position m, horizontal velocity per axis m/s). Typical receiver figures.
-DEFAULT_GNSS_SIGMAS: dict[int, tuple[float, float, float]] = {
-    1: (1.5, 3.0, 0.10),  # single point
-    2: (0.5, 1.0, 0.05),  # DGNSS
-    4: (0.02, 0.04, 0.02),  # RTK fixed
-    5: (0.2, 0.4, 0.04),  # RTK float
-    6: (3.0, 6.0, 0.3),  # dead reckoning
-}
-
 
 @dataclass(frozen=True)
 class EkfConfig:
@@ -71,7 +61,7 @@ class EkfConfig:
     # --- gating and recovery ---
     gate_sigma: float = 5.0  # NIS gate: chi-square tail of a 5-sigma normal event per dof
     reset_outage_s: float = 30.0  # no accepted position this long: re-initialise from GNSS
-    reset_rejections: int = 20  # or this many consecutive rejected positions (2 s at 10 Hz)
+    position_reset_s: float = 10.0  # or positions rejected this long (a real move, not a glitch)
 
     # --- land-vehicle pseudo-measurements ---
     nhc_sigma_mps: float = 0.05  # reference-point lateral/vertical body velocity 1-sigma

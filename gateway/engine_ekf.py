@@ -26,6 +26,7 @@ Design choices (ALGORITHMS.md 3 leaves them to the implementer):
 
 from __future__ import annotations
 
+import logging
 import math
 from collections import deque
 from dataclasses import dataclass
@@ -33,7 +34,8 @@ from dataclasses import dataclass
 import numpy as np
 import numpy.typing as npt
 
-from drivers.samples import FixQuality, GnssFix, ImuSample
+from drivers.log_limit import LogLimiter
+from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix, ImuSample
 from gateway.attitude import (
     dcm_from_rpy,
     exp_so3,
@@ -60,13 +62,15 @@ from gateway.ekf import (
     process_noise_psd,
     transition_matrix,
 )
-from gateway.ekf_config import DEFAULT_GNSS_SIGMAS, DEG, EkfConfig, EkfTuning
-from gateway.epoch_clock import EpochClock
+from gateway.ekf_config import DEG, EkfConfig, EkfTuning
+from gateway.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimator_config import GRAVITY_MPS2
 from gateway.geodesy import LocalFrame
+from gateway.levelling import WindowMotion
 from gateway.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
 
 Array = npt.NDArray[np.float64]
+log = logging.getLogger(__name__)
 
 #: Tilt alignment accepts a non-quiet window after this long (vehicle never still).
 ALIGN_TIMEOUT_S = 10.0
@@ -125,6 +129,15 @@ class _History:
         u = (t_s - a[_T]) / (b[_T] - a[_T])
         return a + u * (b - a)
 
+    @property
+    def full(self) -> bool:
+        """Rows are being overwritten: the history spans its whole length."""
+        return self._count == len(self._buf)
+
+    def oldest_s(self) -> float:
+        """Time of the oldest row kept."""
+        return float(self._ordered()[0, _T])
+
     def mean_rate(self, t_s: float, half_width_s: float) -> Array:
         """Mean body rate (3,) of the rows within ``half_width_s`` of ``t_s`` (centred, no lag)."""
         rows = self._ordered()
@@ -147,6 +160,7 @@ class EkfEngine:
         cfg = config if config is not None else EkfConfig()
         self.cfg = cfg
         self.counters = EkfCounters()
+        self._log = LogLimiter(log)
         self._clock = EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
@@ -168,12 +182,14 @@ class EkfEngine:
         self._win_at_rest = True  # every sample of the window quiet and GNSS speed ~0
         self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
         self._rest_bias_s = 0.0  # rest duration behind the gyro bias estimate, 0 if none
+        self._win_motion = WindowMotion(self.cfg.gnss_vel_sigma_mps, self.cfg.stationary_speed_mps)
+        self._sigma_level_rad = 0.0  # tilt error of the window's own motion (levelling.py)
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
         self._last_quality: FixQuality | None = None
         self._t_accepted_rx_s: float | None = None  # receive time of the last accepted fix
         self._t_pos_epoch_s: float | None = None  # epoch of the last accepted position
-        self._rejections = 0  # consecutive rejected positions
+        self._rejecting_since_s: float | None = None  # epoch time positions began to fail
         self._t_nhc_s = -math.inf
         # motion flags and IMU health
         self._reversing = False
@@ -249,6 +265,7 @@ class EkfEngine:
             self._win_sum[:] = 0.0
             self._win_n = 0
             self._win_at_rest = True
+            self._win_motion.restart()
         self._win_sum += (*f, *w)
         self._win_n += 1
         span = t - self._win_t0_s
@@ -264,6 +281,7 @@ class EkfEngine:
         if self._win_at_rest:
             self._ins.bias_g_rps = [float(x) for x in mean[3:]]
             self._rest_bias_s = span
+        self._sigma_level_rad = self._win_motion.tilt_sigma_rad()
         self._t_levelled_s = t
 
     # ======================================================================= corrections
@@ -274,6 +292,8 @@ class EkfEngine:
         An epoch whose time is ahead of the last IMU sample waits until the IMU covers it.
         """
         self._last_fix = fix
+        if self._p is None and self._win_t0_s is not None:
+            self._win_motion.add(fix)
         if self._ins is None or fix.quality == FixQuality.NONE:
             return
         t_e = self._clock.epoch_time(fix)
@@ -287,7 +307,9 @@ class EkfEngine:
         assert self._hist is not None
         row = self._hist.at(t_e)
         if row is None:
-            self.counters.late_epochs += 1
+            if self._hist.full:  # not an epoch from before the engine started
+                self.counters.late_epochs += 1
+                self._log.warning(t_e, late_epoch_text(t_e, self._hist.oldest_s()), "late")
             return
         if self._p is None:
             self._align_heading(fix, t_e, row)
@@ -302,7 +324,11 @@ class EkfEngine:
         self._last_quality = fix.quality
         since = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
         if sig_pos is not None and (
-            since > self.cfg.reset_outage_s or self._rejections >= self.cfg.reset_rejections
+            since > self.cfg.reset_outage_s
+            or (
+                self._rejecting_since_s is not None
+                and t_e - self._rejecting_since_s >= self.cfg.position_reset_s
+            )
         ):
             self._reset_from_fix(fix, t_e, row, sig_pos)
             return
@@ -327,11 +353,19 @@ class EkfEngine:
             ok = correct(p, dx, m, self.cfg.gate_sigma).accepted
             accepted |= ok
             if m.name == "position":
-                self._rejections = 0 if ok else self._rejections + 1
                 if ok:
-                    self._t_pos_epoch_s = t_e
+                    self._t_pos_epoch_s, self._rejecting_since_s = t_e, None
                 else:
                     self.counters.position_rejected += 1
+                    if self._rejecting_since_s is None:
+                        self._rejecting_since_s = t_e
+                    self._log.warning(
+                        t_e,
+                        f"GNSS position glitch at t={t_e:.3f}: beyond the filter's "
+                        f"{self.cfg.gate_sigma:g}-sigma gate (quality {int(fix.quality)}); "
+                        "position not used",
+                        "glitch",
+                    )
             elif not ok and m.name == "velocity":
                 self.counters.velocity_rejected += 1
             elif not ok:
@@ -417,15 +451,13 @@ class EkfEngine:
         self._p = np.zeros((N_STATES, N_STATES))
         self._set_from_fix(fix, t_e, row_aligned, sig_pos)
         ins.take_interval()
-        sig_bg = tun.sigma_bias_g0_rps
-        if self._rest_bias_s > 0.0:
-            sig_bg = math.sqrt(tun.q_gyro_rad2_per_s / self._rest_bias_s + EARTH_RATE_RPS**2)
+        sig_bg = self._levelled_gyro_bias_sigma_rps()
         sig_ba = tun.sigma_bias_a0_mps2
-        sig_drift = sig_bg * max(0.0, t_e - self._t_levelled_s)
+        sig_tilt = math.hypot(sig_bg * max(0.0, t_e - self._t_levelled_s), self._sigma_level_rad)
         p = self._p
         p[BA, BA] = sig_ba**2 * np.eye(3)
         p[BG, BG] = sig_bg**2 * np.eye(3)
-        p[ATT, ATT] = np.diag([sig_drift**2, sig_drift**2, sig_yaw**2])
+        p[ATT, ATT] = np.diag([sig_tilt**2, sig_tilt**2, sig_yaw**2])
         # Levelling on the mean specific force makes the tilt error and the accelerometer
         # bias error one quantity: C dba = g (-phi_E, phi_N, .). Tilt = M dba + drift.
         c_bn = ins.c_bn
@@ -438,6 +470,27 @@ class EkfEngine:
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
 
+    def _levelled_gyro_bias_sigma_rps(self) -> float:
+        """Gyro bias 1-sigma before the filter runs: the rest mean's, else the turn-on one."""
+        tun = self._tuning
+        assert tun is not None
+        if self._rest_bias_s > 0.0:
+            return math.sqrt(tun.q_gyro_rad2_per_s / self._rest_bias_s + EARTH_RATE_RPS**2)
+        return tun.sigma_bias_g0_rps
+
+    def _sigma_tilt_rad(self) -> float | None:
+        """Roll/pitch 1-sigma: from P once it runs; before, what levelling leaves (the
+        accelerometer bias over g, the window's motion, gyro bias drift since)."""
+        p, tun = self._p, self._tuning
+        if p is not None:
+            return math.sqrt(0.5 * (p[6, 6] + p[7, 7]))
+        if self._ins is None or tun is None or self._t_s is None:
+            return None
+        drift = self._levelled_gyro_bias_sigma_rps() * max(0.0, self._t_s - self._t_levelled_s)
+        return math.sqrt(
+            (tun.sigma_bias_a0_mps2 / GRAVITY_MPS2) ** 2 + self._sigma_level_rad**2 + drift**2
+        )
+
     def _reset_from_fix(self, fix: GnssFix, t_e: float, row: Array, sig_pos: Array) -> None:
         """Recovery after a long outage or a run of rejections: position/velocity from GNSS.
 
@@ -445,6 +498,11 @@ class EkfEngine:
         cross-covariances dropped (the old ones described a state that was just replaced).
         """
         self.counters.resets += 1
+        log.warning(
+            "GNSS position at t=%.3f: position and velocity reset to it (%s)",
+            t_e,
+            "positions rejected for a while" if self._rejecting_since_s is not None else "outage",
+        )
         self._set_from_fix(fix, t_e, row, sig_pos)
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
@@ -472,7 +530,7 @@ class EkfEngine:
         p[POS, POS] = np.diag(sig_pos**2)
         p[VEL, VEL] = self.cfg.align_vel_sigma_mps**2 * np.eye(3)
         self._t_pos_epoch_s = t_e
-        self._rejections = 0
+        self._rejecting_since_s = None
 
     def _antenna_ned(self, fix: GnssFix) -> Array:
         """Antenna position in the local NED frame (origin: the first position used)."""
@@ -483,16 +541,10 @@ class EkfEngine:
 
     def _position_sigma(self, fix: GnssFix) -> Array | None:
         """Position 1-sigma NED (3,): GST when sent, else the quality's default; scaled."""
-        if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None:
+        sig = fix.position_sigma_m
+        if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or sig is None:
             return None
-        if fix.sigma_n_m is not None and fix.sigma_e_m is not None and fix.sigma_d_m is not None:
-            sig = np.array([fix.sigma_n_m, fix.sigma_e_m, fix.sigma_d_m])
-        elif int(fix.quality) in DEFAULT_GNSS_SIGMAS:
-            h, v, _ = DEFAULT_GNSS_SIGMAS[int(fix.quality)]
-            sig = np.array([h, h, v])
-        else:
-            return None
-        return self.cfg.gnss_sigma_scale * np.maximum(sig, 1e-3)
+        return self.cfg.gnss_sigma_scale * np.maximum(np.array(sig), 1e-3)
 
     def _gnss_velocity(self, fix: GnssFix) -> tuple[Array, float] | None:
         """Horizontal antenna velocity (2,) and its 1-sigma, from SOG/COG.
@@ -615,7 +667,7 @@ class EkfEngine:
             vel_ned_mps=vel,
             bias_g_rps=np.array(ins.bias_g_rps),
             bias_a_mps2=np.array(ins.bias_a_mps2),
-            sigma_tilt_rad=(math.sqrt(0.5 * (p[6, 6] + p[7, 7])) if p is not None else None),
+            sigma_tilt_rad=self._sigma_tilt_rad(),
             gnss_ok=p is not None
             and coasting_s == 0.0
             and fix is not None
@@ -648,4 +700,5 @@ class EkfEngine:
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
             imu_gap=self._timing.degraded(),
+            gnss_glitch=self._rejecting_since_s is not None,
         )

@@ -13,13 +13,15 @@ Choices the papers leave open (ALGORITHMS.md 1) are documented at the method tha
 
 from __future__ import annotations
 
+import logging
 import math
 from bisect import bisect_left
 from collections import deque
-from dataclasses import replace
+from dataclasses import dataclass, replace
 
 import numpy as np
 
+from drivers.log_limit import LogLimiter
 from drivers.samples import FixQuality, GnssFix, ImuSample
 from gateway.attitude import (
     dcm_from_rpy,
@@ -28,10 +30,11 @@ from gateway.attitude import (
     rpy_from_dcm,
     wrap_pi,
 )
-from gateway.epoch_clock import EpochClock
+from gateway.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimator_config import GRAVITY_MPS2, ObserverConfig
 from gateway.geodesy import LocalFrame
 from gateway.heading import DEG, HeadingChannel
+from gateway.levelling import WindowMotion
 from gateway.observer import TereshkovObserver
 from gateway.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
 from gateway.terrain import reference_from_antenna, velocity_at
@@ -61,6 +64,18 @@ ACCEL_BIAS_FLOOR_MPS2 = 0.01
 _Row = tuple[float, float, float, float, float, float, float, float, float]
 
 
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ObserverCounters:
+    """GNSS epochs not used as they came (for the logs and tests)."""
+
+    position_rejected: int = 0  # position residual beyond the gate: a glitch
+    position_resets: int = 0  # rejected for ``position_reset_s``: reset to the GNSS
+    late_epochs: int = 0  # epoch older than the IMU history: dropped
+
+
 class ObserverEngine:
     """Tereshkov observer engine (ALGORITHMS.md 1, 2, 4) behind the Estimator protocol."""
 
@@ -77,6 +92,8 @@ class ObserverEngine:
         self._align_n = 0
         self._align_t0_s: float | None = None
         self._align_first_s: float | None = None
+        self._align_motion = WindowMotion(cfg.gnss_vel_sigma_mps, cfg.stationary_speed_mps)
+        self._sigma_level_rad = 0.0  # tilt error of levelling on a moving window, decaying
         self._heading_aligned = False
         # IMU-time state and history
         self._t_s: float | None = None
@@ -114,6 +131,9 @@ class ObserverEngine:
         self._rejecting_since_s: float | None = None  # epoch time glitches began, if ongoing
         # IMU health
         self._timing = ImuTiming()
+        self.counters = ObserverCounters()
+        self._log = LogLimiter(log)
+        self._pos_rejecting_since_s: float | None = None  # epoch time glitches began
         self._imu_alarm = False
         self._bad_since_s: float | None = None  # start of a run of invalid/saturated samples
         self._bad_for_s = 0.0  # length of that run so far
@@ -202,6 +222,7 @@ class ObserverEngine:
             self._align_t0_s = t
             self._align_sum = [0.0] * 6
             self._align_n = 0
+            self._align_motion.restart()
         s = self._align_sum
         for i in range(3):
             s[i] += w[i]
@@ -215,6 +236,7 @@ class ObserverEngine:
             self._align_t0_s = None
             return
         roll, pitch = roll_pitch_from_specific_force((s[3] / n, s[4] / n, s[5] / n))
+        self._sigma_level_rad = self._align_motion.tilt_sigma_rad()
         self._observer = TereshkovObserver(
             self.cfg.tau_s,
             self.cfg.tau_g_s,
@@ -232,6 +254,8 @@ class ObserverEngine:
         quantities of the same instant.
         """
         self._last_fix = fix
+        if self._observer is None and self._align_t0_s is not None:
+            self._align_motion.add(fix)
         if self._observer is None or fix.quality == FixQuality.NONE:
             return
         t_e = self._clock.epoch_time(fix)
@@ -440,6 +464,7 @@ class ObserverEngine:
             self._set_tilt_open()
             return False
         obs.correct_tilt(e_n * scale, e_e * scale)
+        self._sigma_level_rad *= math.exp(-interval_s / self.cfg.tau_s)
         self._epoch_interval_s = interval_s
         a = min(1.0, interval_s / E_NOISE_TAU_S)
         self._e_var_mps4 += a * (0.5 * (e_n * e_n + e_e * e_e) - self._e_var_mps4)
@@ -562,9 +587,12 @@ class ObserverEngine:
         p_ant = np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
         p_ref = reference_from_antenna(p_ant, c_bn, self._l_ant_b)
         p, v, sf = self._p_ned_m, self._v_ned_mps, self._sf
-        if not self._nav_valid or row is None:
-            if row is None:
-                return
+        if row is None:
+            if len(self._hist) == HISTORY_LEN:  # not an epoch from before the engine started
+                self.counters.late_epochs += 1
+                self._log.warning(t_e, late_epoch_text(t_e, self._hist[0][0]), "late")
+            return
+        if not self._nav_valid:
             age = self._t_s - t_e
             vn, ve = v_ref_ne if v_ref_ne is not None else (0.0, 0.0)
             self._v_ned_mps = [vn, ve, 0.0]
@@ -586,6 +614,10 @@ class ObserverEngine:
         interval_s = min(t_e - (self._t_pos_epoch_s or t_e), self.cfg.max_gnss_interval_s)
         tau = self.cfg.pos_blend_tau_s
         k_p = min(1.0, 2.0 * interval_s / tau) if interval_s > 0.0 else 1.0
+        if self._position_glitch(fix, t_e, dp):
+            k_p, interval_s = 0.0, 0.0  # dead reckoning on the GNSS velocity meanwhile
+        elif self._pos_rejecting_since_s is not None:
+            self._pos_rejecting_since_s, k_p = None, 1.0  # a reset: the GNSS moved for real
         dv = [0.0, 0.0, 0.0]
         if v_ref_ne is not None:
             dv[0] = v_ref_ne[0] - v_e[0]
@@ -597,7 +629,48 @@ class ObserverEngine:
         for i in range(3):
             p[i] += k_p * dp[i] + dv[i] * age
             v[i] += dv[i]
-        self._t_pos_epoch_s = t_e
+        if k_p > 0.0:
+            self._t_pos_epoch_s = t_e
+
+    def _position_glitch(self, fix: GnssFix, t_e: float, dp: list[float]) -> bool:
+        """Is the horizontal position residual ``dp`` (m) at ``t_e`` a GNSS glitch?
+
+        Gate: ``glitch_sigma`` x (the fix's horizontal sigma + the velocity's drift since the
+        last position used) + ``position_gate_m``. A glitch is counted, logged at a limited
+        rate, and not blended in (the velocity still is); the mode is DEGRADED meanwhile.
+        Residuals beyond the gate for ``position_reset_s`` are the GNSS's real position (a
+        new base station, a datum change): this one is not a glitch, and resets to it.
+        """
+        cfg = self.cfg
+        sig = fix.position_sigma_m
+        since_s = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
+        sigma_h = (math.hypot(sig[0], sig[1]) if sig is not None else 0.0) + (
+            cfg.gnss_vel_sigma_mps * since_s
+        )
+        gate_m = cfg.glitch_sigma * sigma_h + cfg.position_gate_m
+        residual_m = math.hypot(dp[0], dp[1])
+        if residual_m <= gate_m:
+            self._pos_rejecting_since_s = None
+            return False
+        if self._pos_rejecting_since_s is None:
+            self._pos_rejecting_since_s = t_e
+        rejecting_s = t_e - self._pos_rejecting_since_s
+        if rejecting_s >= cfg.position_reset_s:
+            self.counters.position_resets += 1
+            log.warning(
+                "GNSS position %.2f m from the dead-reckoned one for %.1f s at t=%.3f: taken "
+                "as the truth, position reset to it",
+                residual_m, rejecting_s, t_e,
+            )  # fmt: skip
+            return False
+        self.counters.position_rejected += 1
+        self._log.warning(
+            t_e,
+            f"GNSS position glitch at t={t_e:.3f}: {residual_m:.2f} m from the dead-reckoned "
+            f"position, gate {gate_m:.2f} m (quality {int(fix.quality)}); position not used",
+            "glitch",
+        )
+        return True
 
     def _mark_bad(self, t: float) -> None:
         """An invalid (skipped) or saturated sample: a run of them lasting
@@ -688,6 +761,7 @@ class ObserverEngine:
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
             imu_gap=self._timing.degraded(),
+            gnss_glitch=self._pos_rejecting_since_s is not None,
         )
 
     def _sigma_bg_rps(self) -> float:
@@ -707,7 +781,9 @@ class ObserverEngine:
         - residual gyro bias times tau (steady tilt b_g tau, eq. 10) and accelerometer bias
           over g (eq. 8), each decaying from its initial 1-sigma with the learning exponent
           down to the paper's residual level;
-        - open-loop drift b_g t while coasting.
+        - open-loop drift b_g t while coasting;
+        - the tilt error of levelling on a moving window (:mod:`gateway.levelling`), decaying
+          with tau while the tilt loop is closed.
         """
         cfg = self.cfg
         g = GRAVITY_MPS2
@@ -721,4 +797,5 @@ class ObserverEngine:
             + (sigma_bg * cfg.tau_s) ** 2
             + (sigma_ba / g) ** 2
             + (sigma_bg * coasting_s) ** 2
+            + self._sigma_level_rad**2
         )

@@ -72,3 +72,12 @@ class EpochClock:
         if self._follows_utc(least_s):
             return fix.t_utc
         return fix.t_utc + least_s - self.receiver_latency_s
+
+
+def late_epoch_text(t_e: float, oldest_s: float) -> str:
+    """The warning for an epoch dropped because it is older than an engine's history."""
+    return (
+        f"GNSS epoch at t={t_e:.3f} dropped: {oldest_s - t_e:.3f} s older than the IMU "
+        f"history kept (from t={oldest_s:.3f}); expected a receiver latency within it "
+        "(the receiver's clock, or [gnss] epoch_time?)"
+    )

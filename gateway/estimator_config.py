@@ -76,6 +76,10 @@ class ObserverConfig:
 
     # --- reference-point propagation ---
     pos_blend_tau_s: float = 0.3  # GNSS position residual is blended in with this tau
+    # a position residual beyond glitch_sigma x the fix's horizontal sigma (GST, else the
+    # quality's default) plus position_gate_m is a glitch: rejected, dead reckoning meanwhile
+    position_gate_m: float = 0.5  # lever arm, attitude and latency errors of a working system
+    position_reset_s: float = 10.0  # rejected this long: the GNSS moved for real, reset to it
 
     # --- convergence flags and roll/pitch sigma ---
     gyro_bias_sigma0_dps: float = 0.3  # x/y gyro bias 1-sigma before learning

@@ -16,6 +16,11 @@ limited rate (solution time, so replay logs the same). Checks:
   been continuous with itself for ``settle_s`` (a real reset after an outage costs that long
   without position, an absurd spike never gets through).
 
+Roll and pitch go out only with a stated accuracy: while their 1-sigma is unknown or beyond
+``max_tilt_sigma_deg`` (the most NAVGW_STATUS byte 7 can state, SPEC 4), they are "not
+available". That is normal operation (an engine levelled on a moving window), not an
+implausible output: not counted, not logged, the mode kept.
+
 It also makes the fix fields say what the position sent is (SPEC 4): while COASTING the
 position is dead reckoning (GGA quality 6; satellites, HDOP and age not available), and
 without a position, no fix (0), not the last fix received.
@@ -34,6 +39,7 @@ from enum import Enum
 
 import numpy as np
 
+from drivers.log_limit import LogLimiter
 from drivers.samples import FixQuality
 from gateway.solution import Mode, Solution
 
@@ -49,6 +55,7 @@ class GuardLimits:
     """Physical bounds of a farm vehicle and its sensors (SI unless the name says)."""
 
     max_tilt_deg: float = 60.0  # roll or pitch beyond which a wheeled vehicle has rolled over
+    max_tilt_sigma_deg: float = 2.54  # largest roll/pitch 1-sigma STATUS states (SPEC 4)
     max_rate_dps: float = 300.0  # ADIS16334 gyro range (SPEC 1)
     max_speed_mps: float = 40.0  # 144 km/h: no farm vehicle, no road transport either
     max_accel_mps2: float = 15.0  # 1.5 g, braking or a bump: bounds position change with time
@@ -88,12 +95,10 @@ class OutputGuard:
 
     def __init__(self, limits: GuardLimits | None = None, warn_interval_s: float = 10.0) -> None:
         self.limits = limits or GuardLimits()
-        self.warn_interval_s = warn_interval_s
         self.counts: dict[Withheld, int] = dict.fromkeys(Withheld, 0)
         self._track: _Track | None = None  # last position sent
         self._candidate: _Track | None = None  # a new track, not yet trusted
-        self._last_warn_t = -math.inf
-        self._suppressed = 0
+        self._log = LogLimiter(log, warn_interval_s)
 
     def forget_track(self) -> None:
         """The next position starts a new track (the engine was restarted)."""
@@ -116,6 +121,10 @@ class OutputGuard:
                 age_s=None,
             )
         lim = self.limits
+        if sol.roll_rad is not None or sol.pitch_rad is not None:
+            sigma = sol.sigma_tilt_rad
+            if sigma is None or not sigma <= lim.max_tilt_sigma_deg * DEG:
+                sol = replace(sol, roll_rad=None, pitch_rad=None)
         changes: dict[str, object] = {}
         reasons: list[str] = []
         fault = False
@@ -173,7 +182,8 @@ class OutputGuard:
         if not changes:
             return sol
         mode = Mode.FAULT if fault else max(sol.mode, Mode.DEGRADED)
-        self._warn(sol.t, f"implausible output withheld at t={sol.t:.3f}: " + "; ".join(reasons))
+        why = "; ".join(reasons)
+        self._log.warning(sol.t, f"implausible output withheld at t={sol.t:.3f}: {why}")
         return replace(sol, mode=mode, **changes)  # type: ignore[arg-type]
 
     def _check_position(self, sol: Solution, withhold: Callable[..., None]) -> None:
@@ -236,14 +246,6 @@ class OutputGuard:
             and dv <= lim.max_accel_mps2 * dt + lim.jump_allowance_m
             and speed_b <= lim.max_speed_mps
         )
-
-    def _warn(self, t: float, text: str) -> None:
-        if math.isfinite(t) and t - self._last_warn_t < self.warn_interval_s:
-            self._suppressed += 1
-            return
-        more = f" ({self._suppressed} more since the last report)" if self._suppressed else ""
-        log.warning("%s%s", text, more)
-        self._last_warn_t, self._suppressed = t, 0
 
 
 def _ok(x: float | None, limit: float) -> bool:

@@ -125,18 +125,21 @@ def navigation_mode(
     fix: GnssFix | None,
     navigating_fix_qualities: tuple[int, ...],
     imu_gap: bool = False,
+    gnss_glitch: bool = False,
 ) -> Mode:
     """The mode every engine reports, in order of precedence: FAULT (IMU data unusable),
     ALIGNING (no attitude/heading yet), COASTING (GNSS velocity timed out), DEGRADED (IMU
-    alarm, a recent gap in the IMU stream, or a fix quality outside
-    ``navigating_fix_qualities``), else NAVIGATING."""
+    alarm, a recent gap in the IMU stream, GNSS positions rejected as glitches, or a fix
+    quality outside ``navigating_fix_qualities``), else NAVIGATING."""
     if fault:
         return Mode.FAULT
     if not aligned:
         return Mode.ALIGNING
     if coasting:
         return Mode.COASTING
-    if imu_alarm or imu_gap or fix is None or int(fix.quality) not in navigating_fix_qualities:
+    if imu_alarm or imu_gap or gnss_glitch:
+        return Mode.DEGRADED
+    if fix is None or int(fix.quality) not in navigating_fix_qualities:
         return Mode.DEGRADED
     return Mode.NAVIGATING
 

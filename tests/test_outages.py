@@ -191,3 +191,31 @@ def test_a_saturated_imu_is_a_fault_at_once_then_the_engine_realigns(
     assert tilts and np.degrees(max(tilts)) < 1.0  # flat ground: level throughout
     after = [Mode(d[2]) for t, d in frames if span[1] + 12.0 <= t < span[1] + 30.0]
     assert set(after) == {Mode.NAVIGATING}
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_levelled_while_speeding_up_no_tilt_goes_out_until_it_is_known(
+    tmp_path: Path, engine: Engine
+) -> None:
+    """The vcan VM under host load: the IMU stalled, the engine restarted while the vehicle
+    pulled away (0.6 m/s^2, 3.5 deg of apparent pitch) and levelled on that window. Roll and
+    pitch then went out 3.5 deg off; now they wait until the tilt loop has corrected them."""
+    silent = (8.5, 10.5)  # the restart levels on 10.5-11.5 s, inside the 10-15 s pull-away
+    imu = [
+        s
+        for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+        if not silent[0] <= motion_time(s.t) < silent[1]
+    ]
+    fixes = gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    log = tmp_path / "out.log"
+    core = run(log, engine, imu, fixes)
+    assert core.stats.engine_restarts == 1
+    tilts = [
+        (motion_time(m.t), np.degrees(max(abs(m.fields["roll"]), abs(m.fields["pitch"]))))
+        for m in decode_log(log)
+        if m.id == "attitude" and m.fields["roll"] is not None
+    ]
+    worst = max(tilt for _, tilt in tilts)
+    assert worst < 2.54, worst  # flat ground: level throughout
+    # and the tilt comes back once the loop has pulled it in: within 20 s of the restart
+    assert [t for t, _ in tilts if silent[1] < t < silent[1] + 20.0]

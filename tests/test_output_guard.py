@@ -174,3 +174,24 @@ def test_each_bound_withholds_the_field_and_lowers_the_mode(field: str, value: o
 
 def _fields(sol: Solution) -> dict[str, object]:
     return {name: getattr(sol, name) for name in Solution.__slots__}  # type: ignore[attr-defined]
+
+
+@pytest.mark.parametrize("sigma_deg", [None, 2.6, math.nan])
+def test_tilt_without_a_stated_accuracy_goes_out_as_not_available(
+    sigma_deg: float | None,
+) -> None:
+    """Roll/pitch 1-sigma unknown or beyond what STATUS can state: roll and pitch withheld
+    quietly (normal after levelling on a moving window), yaw, position and mode kept."""
+    guard = OutputGuard()
+    engine = ScriptedEngine()
+    engine.t = T0 + 1.0
+    sigma = None if sigma_deg is None else math.radians(sigma_deg)
+    sol = guard.check(Solution(**{**_fields(engine.solution()), "sigma_tilt_rad": sigma}))
+    assert sol.roll_rad is None and sol.pitch_rad is None
+    assert sol.yaw_rad == math.pi / 2 and sol.lat_deg == LAT0
+    assert sol.mode is (Mode.NAVIGATING if sigma_deg is None or sigma_deg > 0 else Mode.DEGRADED)
+    assert guard.counts[Withheld.ATTITUDE] == 0
+    stated = guard.check(
+        Solution(**{**_fields(engine.solution()), "sigma_tilt_rad": math.radians(2.5)})
+    )
+    assert stated.roll_rad == 0.02 and stated.pitch_rad == -0.01

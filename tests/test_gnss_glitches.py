@@ -1,0 +1,128 @@
+"""GNSS position glitches and late epochs, as the fault table injects them (issue 12).
+
+The real FusionCore from a config, fed exact motion (tests.kinematics) with RTK-fixed
+positions shifted for a while; frames written as candump and read back with the nmea2000
+package (positions) and as raw NAVGW_STATUS bytes (mode).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivers.samples import GnssFix
+from gateway.config import Engine
+from gateway.engine_ekf import EkfEngine
+from gateway.engine_observer import ObserverEngine
+from gateway.geodesy import lla_to_ned
+from gateway.solution import Mode
+from tests.kinematics import ORIGIN_LLA, T0_S, gnss_stream, imu_stream, motion_time, state_at
+from tests.n2k_check import decode_log
+from tests.test_outages import LEVER, MOTION, run, status
+
+M_PER_DEG = 111_195.0
+
+
+def shifted(fixes: list[GnssFix], span: tuple[float, float], north_m: float) -> list[GnssFix]:
+    """Positions of epochs (motion time) in ``span`` moved ``north_m`` north; velocity kept."""
+    return [
+        dataclasses.replace(f, lat_deg=f.lat_deg + north_m / M_PER_DEG)
+        if f.lat_deg is not None and span[0] <= motion_time(f.t) < span[1]
+        else f
+        for f in fixes
+    ]
+
+
+def position_errors(
+    log: Path, north_m: float = 0.0, after: float = 0.0
+) -> list[tuple[float, float]]:
+    """(motion time, horizontal error m) of every 129025 position, against the truth moved
+    ``north_m`` north for frames after motion time ``after``."""
+    out = []
+    for m in decode_log(log):
+        if m.id != "positionRapidUpdate" or m.fields["latitude"] is None:
+            continue
+        t = motion_time(m.t)
+        ned = lla_to_ned(np.array([m.fields["latitude"], m.fields["longitude"], 0.0]), ORIGIN_LLA)
+        truth = state_at(MOTION, t).p_ned_m[0].copy()
+        if t >= after:
+            truth[0] += north_m
+        out.append((t, float(np.hypot(*(ned[:2] - truth[:2])))))
+    return out
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+@pytest.mark.parametrize(("north_m", "seconds"), [(5.0, 5.0), (50.0, 1.0)])
+def test_a_position_glitch_is_rejected_told_and_leaves_no_bias(
+    tmp_path: Path,
+    caplog: pytest.LogCaptureFixture,
+    engine: Engine,
+    north_m: float,
+    seconds: float,
+) -> None:
+    span = (70.0, 70.0 + seconds)
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    fixes = shifted(gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07), span, north_m)
+    log = tmp_path / "out.log"
+    with caplog.at_level(logging.WARNING):
+        core = run(log, engine, imu, fixes)
+    errors = position_errors(log)
+    worst = max(e for t, e in errors if t >= 40.0)
+    assert worst < 0.3, worst  # never followed the glitch
+    after = [e for t, e in errors if span[1] + 5.0 <= t]
+    assert after and max(after) < 0.05  # no lasting bias
+    rejected = (
+        core.engine.counters.position_rejected
+        if isinstance(core.engine, (ObserverEngine, EkfEngine))
+        else 0
+    )
+    assert rejected >= 9 * seconds
+    assert any("glitch" in r.getMessage() for r in caplog.records)  # told in the log ...
+    modes = {Mode(d[2]) for t, d in status(log) if span[0] + 0.2 <= t < span[1]}
+    assert modes == {Mode.DEGRADED}, modes  # ... and on the bus
+
+
+def test_a_lasting_shift_is_taken_after_position_reset_s(tmp_path: Path) -> None:
+    """A new base station moves the GNSS 3 m for good: dead reckoning for 10 s, then reset."""
+    start = 70.0
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    fixes = shifted(
+        gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07), (start, 1e9), 3.0
+    )
+    log = tmp_path / "out.log"
+    core = run(log, Engine.OBSERVER, imu, fixes)
+    assert isinstance(core.engine, ObserverEngine)
+    assert core.engine.counters.position_resets == 1
+    errors = position_errors(log, north_m=3.0, after=start)
+    later = [e for t, e in errors if start + 12.0 <= t]
+    assert later and max(later) < 0.05
+    modes = [Mode(d[2]) for t, d in status(log) if start + 12.0 <= t]
+    assert set(modes) == {Mode.NAVIGATING}
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_epochs_older_than_the_history_are_counted_and_logged(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, engine: Engine
+) -> None:
+    """Sentence UTC 5 s behind for 10 s: the fixes cannot be used; say so, once per 10 s."""
+    span = (70.0, 80.0)
+    fixes = [
+        dataclasses.replace(f, t_utc=f.t_utc - 5.0)
+        if f.t_utc is not None and span[0] <= motion_time(f.t) < span[1]
+        else f
+        for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    ]
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    with caplog.at_level(logging.WARNING):
+        core = run(tmp_path / "out.log", engine, imu, fixes)
+    assert isinstance(core.engine, (ObserverEngine, EkfEngine))
+    assert core.engine.counters.late_epochs >= 90
+    late = [
+        r.getMessage() for r in caplog.records if "older than the IMU history" in r.getMessage()
+    ]
+    assert len(late) == 1, late  # one line per 10 s of epoch time, not one per epoch
+    assert f"epoch at t={T0_S + span[0] - 5.0:.3f} dropped" in late[0]

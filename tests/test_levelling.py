@@ -1,0 +1,58 @@
+"""WindowMotion: the tilt error a levelling window's own acceleration causes, from GNSS."""
+
+from __future__ import annotations
+
+import math
+
+import pytest
+
+from drivers.samples import FixQuality, GnssFix
+from gateway.estimator_config import GRAVITY_MPS2
+from gateway.levelling import UNKNOWN_MOTION_TILT_RAD, WindowMotion
+
+
+def fix(t: float, sog_mps: float | None, cog_deg: float = 90.0) -> GnssFix:
+    return GnssFix(
+        t=t,
+        t_utc=t,
+        quality=FixQuality.RTK_FIXED,
+        sog_mps=sog_mps,
+        cog_rad=None if sog_mps is None else math.radians(cog_deg),
+    )
+
+
+def test_at_rest_or_before_any_velocity_the_window_adds_nothing() -> None:
+    motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1)
+    assert motion.tilt_sigma_rad() == 0.0
+    for k in range(11):
+        motion.add(fix(0.1 * k, 0.03))
+    motion.add(fix(1.2, None))
+    assert motion.tilt_sigma_rad() == 0.0
+
+
+@pytest.mark.parametrize("accel_mps2", [0.3, 0.84, 2.0])
+def test_a_speeding_up_window_carries_its_acceleration_over_g(accel_mps2: float) -> None:
+    motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1)
+    for k in range(11):
+        motion.add(fix(100.0 + 0.1 * k, 1.0 + accel_mps2 * 0.1 * k))
+    sigma = motion.tilt_sigma_rad()
+    assert sigma == pytest.approx(
+        math.atan((accel_mps2 + math.sqrt(2.0) * 0.02) / GRAVITY_MPS2), rel=1e-9
+    )
+    assert math.degrees(sigma) > math.degrees(accel_mps2 / GRAVITY_MPS2)  # never below a/g
+    motion.restart()
+    assert motion.tilt_sigma_rad() == 0.0
+
+
+def test_a_turn_at_constant_speed_is_an_acceleration_too() -> None:
+    """Centripetal: 3 m/s turning 90 deg in 1 s is |dv| = 4.2 m/s over 1 s."""
+    motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1)
+    motion.add(fix(0.0, 3.0, 0.0))
+    motion.add(fix(1.0, 3.0, 90.0))
+    assert motion.tilt_sigma_rad() > math.atan(4.2 / GRAVITY_MPS2)
+
+
+def test_moving_with_a_single_velocity_is_unknown_motion() -> None:
+    motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1)
+    motion.add(fix(5.0, 2.0))
+    assert motion.tilt_sigma_rad() == UNKNOWN_MOTION_TILT_RAD
