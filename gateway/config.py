@@ -9,12 +9,13 @@ prints them with their comments. Lever arms and GNSS timing are given once, in
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
 from pathlib import Path
 from typing import Any
 
-from gateway.config_schema import ConfigError, from_table, in_range, load_toml
+from gateway.config_schema import ConfigError, from_table, in_range, load_toml, source_comments
 from gateway.ekf_config import EkfConfig
 from gateway.engine_ekf import EkfEngine
 from gateway.engine_observer import ObserverEngine
@@ -222,6 +223,14 @@ class GatewayConfig:
         """This config with another engine (``--engine`` on the command line)."""
         return dataclasses.replace(self, estimator=EstimatorSection(engine=engine))
 
+    def lever_arm_warning(self) -> str | None:
+        """The warning of ``navgw run`` and ``navgw replay`` when the antenna lever arm is zero
+        (None when it is set): zero is the default, so a forgotten [vehicle] or --config
+        silently moves the reference point to the antenna."""
+        if any(self.vehicle.antenna_lever_arm_m):
+            return None
+        return "[vehicle] antenna_lever_arm_m is zero: the reference point is the antenna"
+
     def make_engine(self) -> Estimator:
         """The configured estimator, with this config's geometry and timing."""
         if self.estimator.engine is Engine.EKF:
@@ -279,21 +288,36 @@ def load_config(path: str | Path | None) -> GatewayConfig:
 
 def example_toml() -> str:
     """A complete, commented config with every default, as ``navgw config --example`` prints."""
-    lines = ["# navgw configuration (TOML). Every key is optional; shown are the defaults."]
-    for name, cls in {**SECTIONS, **ENGINE_SECTIONS}.items():
-        lines += ["", f"[{name}]"]
-        doc = (cls.__doc__ or "").strip().splitlines()[0]
-        lines.append(f"# {doc}")
-        default = cls()
-        for f in dataclasses.fields(cls):
+    title = "navgw configuration (TOML). Every key is optional; shown are the defaults."
+    return config_toml(GatewayConfig(), title, [*SECTIONS, *ENGINE_SECTIONS])
+
+
+def config_toml(config: GatewayConfig, title: str, sections: Iterable[str]) -> str:
+    """``sections`` of ``config`` as commented TOML: each key with its value and its meaning
+    (``navgw config --example``; ``navgw sim`` writes a simulated vehicle's this way)."""
+    lines = [f"# {title}"]
+    for name in sections:
+        table = getattr(config, name)
+        lines += ["", f"[{name}]", f"# {_section_header(name, type(table))}"]
+        comments = source_comments(type(table))
+        for f in dataclasses.fields(table):
             if name in ENGINE_SECTIONS and f.name in _SHARED:
                 continue
-            value = getattr(default, f.name)
-            comment = f.metadata.get("doc")
+            value = getattr(table, f.name)
+            comment = f.metadata.get("doc") or comments.get(f.name)
             text = hex(value) if "address" in f.name else _toml_value(value)
             line = f"{f.name} = {text}" if text is not None else f"# {f.name} = (unset)"
             lines.append(f"{line}  # {comment}" if comment else line)
     return "\n".join(lines) + "\n"
+
+
+def _section_header(name: str, cls: type) -> str:
+    """The line under ``[name]``: the section class's summary, or for an engine's tuning (whose
+    class docstring is Sphinx markup) which engine it tunes and where its shared keys are."""
+    if name not in ENGINE_SECTIONS:
+        return (cls.__doc__ or "").strip().splitlines()[0]
+    shared = " and ".join(f"[{section}]" for section in dict.fromkeys(_SHARED.values()))
+    return f'tuning of engine = "{name}"; its lever arms and GNSS timing are set in {shared}'
 
 
 def _toml_value(value: Any) -> str | None:

@@ -6,10 +6,15 @@ and reports ``file: [section] key = value: expected ...`` so a user can fix the 
 
 from __future__ import annotations
 
+import ast
 import dataclasses
 import enum
+import inspect
+import io
 import math
 import sys
+import textwrap
+import tokenize
 import types
 import typing
 from pathlib import Path
@@ -158,3 +163,42 @@ def in_range(lo: float, hi: float) -> dict[str, Any]:
         return None if all(lo <= v <= hi for v in values) else f"a value in [{lo}, {hi}]"
 
     return {"check": check}
+
+
+def source_comments(cls: type) -> dict[str, str]:
+    """The comment of each field in the source of class ``cls``: its trailing ``# ...``, else
+    the comment lines heading its group (fields with no blank line between).
+
+    The engine tunings document their fields as code comments, not field metadata; this is
+    how ``navgw config --example`` shows them. Rules (``# --- timing ---``) title a part of the
+    class, not a field.
+    """
+    source = textwrap.dedent(inspect.getsource(cls))
+    comments = {
+        tok.start[0]: tok.string.lstrip("#").strip()
+        for tok in tokenize.generate_tokens(io.StringIO(source).readline)
+        if tok.type == tokenize.COMMENT
+    }
+    body = typing.cast(ast.ClassDef, ast.parse(source).body[0]).body
+    fields = {node.lineno: node for node in body if isinstance(node, ast.AnnAssign)}
+    covered = {n for node in fields.values() for n in range(node.lineno, _end(node) + 1)}
+    docs: dict[str, str] = {}
+    heading: list[str] = []  # the comment lines heading the current group of fields
+    previous_is_heading = False
+    for number, line in enumerate(source.splitlines(), start=1):
+        alone = number in comments and number not in covered and line.lstrip().startswith("#")
+        note = alone and not comments[number].startswith("---")
+        if number in fields:
+            node = fields[number]
+            own = [comments[n] for n in range(number, _end(node) + 1) if n in comments]
+            docs[ast.unparse(node.target)] = " ".join(own or heading)
+        elif note:
+            heading = [*heading, comments[number]] if previous_is_heading else [comments[number]]
+        elif number not in covered:
+            heading = []
+        previous_is_heading = note
+    return docs
+
+
+def _end(node: ast.stmt) -> int:
+    return node.end_lineno or node.lineno

@@ -147,7 +147,10 @@ class DemoSummary:
             "samples the gateway got too late to use)",
             f"  output      {self.frames_sent} frames on the ISOBUS -> {self.output_log}",
             f"  bias error  gyro x {g[0]:+.4f} y {g[1]:+.4f} z {g[2]:+.4f} deg/s, "
-            f"accel x {a[0]:+.4f} y {a[1]:+.4f} m/s^2 (final estimate minus truth)",
+            f"accel x {a[0]:+.4f} y {a[1]:+.4f} m/s^2 (final estimate minus truth)"
+            if not math.isnan(g[0])
+            else "  bias error  not measured: the run ended before the first bias estimate "
+            "(a longer --minutes)",
             f"  attitude    RMS error after alignment (+{SETTLE_S:.0f} s): roll {r[0]:.3f}, "
             f"pitch {r[1]:.3f}, heading {r[2]:.3f} deg"
             if not math.isnan(r[0])

@@ -7,11 +7,14 @@ the wires, in the log formats of SPEC 3, with the truth beside it:
 - ``imu.log``    candump ``-L`` lines of IMU_GYRO / IMU_ACCEL / IMU_AUX (SPEC 1)
 - ``gnss.nmea``  host-stamped NMEA 0183 sentences (SPEC 2)
 - ``truth.npz``  :class:`sim_bus.truth.Truth`, including the IMU's true biases
+- ``navgw.toml`` the gateway config of the simulated vehicle and sensors (SPEC 5), which
+  replay needs to put the reference point where the truth has it
 """
 
 from __future__ import annotations
 
 import dataclasses
+import itertools
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -19,8 +22,11 @@ from typing import Any
 
 import numpy as np
 
+from drivers.nmea import read_fixes_from_log
 from drivers.samples import FixQuality
+from gateway.config import GatewayConfig, GnssSection, ImuSection, VehicleSection, config_toml
 from gateway.config_schema import ConfigError, from_table
+from gateway.epoch_clock import DELAY_WINDOW
 from sim_bus.adis16334 import Adis16334Config, Adis16334Output, simulate
 from sim_bus.canlog import write_candump
 from sim_bus.gnss_receiver import (
@@ -30,13 +36,16 @@ from sim_bus.gnss_receiver import (
     simulate_receiver,
 )
 from sim_bus.imu_frames import BridgeConfig, frames
-from sim_bus.nmealog import write_nmea_log
+from sim_bus.nmealog import read_nmea_log, write_nmea_log
 from sim_bus.truth import Truth
 from sim_bus.vehicle import VEHICLE_PRESETS, VehicleConfig, simulate_vehicle
 
 IMU_LOG = "imu.log"
 GNSS_LOG = "gnss.nmea"
 TRUTH_FILE = "truth.npz"
+CONFIG_FILE = "navgw.toml"
+#: The gateway config sections a scenario determines; the rest keep their defaults.
+CONFIG_SECTIONS = ("vehicle", "imu", "gnss")
 
 #: Default host-clock start of a run (UTC s): 2023-11-14 22:13:20.
 T0_S = 1_700_000_000.0
@@ -64,6 +73,7 @@ class SimRun:
     imu_log: Path
     gnss_log: Path
     truth_file: Path
+    config_file: Path
     imu_samples: int
     can_frames: int
     nmea_lines: int
@@ -162,7 +172,8 @@ def simulate_run(
 
 
 def generate(scenario: Scenario, out_dir: str | Path, seed: int = 0) -> SimRun:
-    """Write ``imu.log``, ``gnss.nmea`` and ``truth.npz`` of one seeded run into ``out_dir``."""
+    """Write ``imu.log``, ``gnss.nmea``, ``truth.npz`` and ``navgw.toml`` of one seeded run
+    into ``out_dir``."""
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     truth, imu_out, gnss_out = simulate_run(scenario, seed)
@@ -170,6 +181,7 @@ def generate(scenario: Scenario, out_dir: str | Path, seed: int = 0) -> SimRun:
         imu_log=out / IMU_LOG,
         gnss_log=out / GNSS_LOG,
         truth_file=out / TRUTH_FILE,
+        config_file=out / CONFIG_FILE,
         imu_samples=len(truth),
         can_frames=write_candump(out / IMU_LOG, frames(imu_out, _seeded(scenario, seed)[1].bridge)),
         nmea_lines=len(gnss_out.lines),
@@ -177,4 +189,33 @@ def generate(scenario: Scenario, out_dir: str | Path, seed: int = 0) -> SimRun:
     )
     write_nmea_log(run.gnss_log, gnss_out.lines)
     truth.save(run.truth_file)
+    config = gateway_config(scenario, receiver_latency_s(run.gnss_log, scenario.gnss))
+    title = (
+        f"navgw config of the vehicle and sensors of simulated scenario {scenario.name} "
+        "(all keys: navgw config --example)"
+    )
+    run.config_file.write_text(config_toml(config, title, CONFIG_SECTIONS))
     return run
+
+
+def gateway_config(scenario: Scenario, receiver_latency_s: float) -> GatewayConfig:
+    """The gateway config an integrator would write for the scenario's vehicle and sensors."""
+    return GatewayConfig(
+        vehicle=VehicleSection(
+            antenna_lever_arm_m=scenario.vehicle.antenna_lever_arm_m,
+            imu_lever_arm_m=scenario.vehicle.imu_lever_arm_m,
+            imu_mounting_rpy_deg=scenario.imu.imu_mounting_rpy_deg,
+        ),
+        imu=ImuSection(bridge_source_address=scenario.bridge.source_address),
+        gnss=GnssSection(baudrate=scenario.gnss.baud, receiver_latency_s=receiver_latency_s),
+    )
+
+
+def receiver_latency_s(gnss_log: Path, receiver: GnssReceiverConfig) -> float:
+    """``[gnss] receiver_latency_s`` as an integrator measures it on the receiver's log: the
+    least delay from an epoch to the receipt of its last sentence over the epoch clock's window
+    at the start, less the host clock's offset from UTC; to the millisecond."""
+    with read_nmea_log(gnss_log) as reader:
+        fixes = itertools.islice(read_fixes_from_log(reader), DELAY_WINDOW)
+        delays = [fix.t - fix.t_utc for fix in fixes if fix.t_utc is not None]
+    return round(min(delays) - receiver.host_clock_offset_s, 3)

@@ -2,11 +2,21 @@
 
 from __future__ import annotations
 
+import dataclasses
+import re
 from pathlib import Path
 
 import pytest
 
-from gateway.config import Engine, GatewayConfig, config_from_table, example_toml, load_config
+from gateway.cli import main
+from gateway.config import (
+    ENGINE_SECTIONS,
+    Engine,
+    GatewayConfig,
+    config_from_table,
+    example_toml,
+    load_config,
+)
 from gateway.config_schema import ConfigError, tomllib
 from gateway.j1939 import Pgn
 
@@ -32,6 +42,26 @@ def test_example_is_complete_valid_and_equal_to_the_defaults() -> None:
     assert config_from_table(tomllib.loads(text)) == GatewayConfig()
     for key in ("antenna_lever_arm_m", "imu_mounting_rpy_deg", "attitude_hz = 50.0", "tau_g_s"):
         assert key in text
+
+
+def test_example_explains_every_engine_key_in_plain_text(tmp_path: Path) -> None:
+    """[observer] and [ekf] keys had no comments and their headers showed Sphinx roles."""
+    text = example_toml()
+    assert ":class:" not in text and "`" not in text
+    commented_key = re.compile(r"^(?:# )?(\w+) = .+  # \S")
+    shared = set(GatewayConfig().shared())  # given in [vehicle] and [gnss] instead
+    for name, cls in ENGINE_SECTIONS.items():
+        lines = text.split(f"\n[{name}]\n")[1].split("\n\n")[0].splitlines()
+        assert lines[0] == (
+            f'# tuning of engine = "{name}"; its lever arms and GNSS timing are set in '
+            "[vehicle] and [gnss]"
+        )
+        keys = [m[1] for line in lines[1:] if (m := commented_key.match(line))]
+        assert len(keys) == len(lines) - 1, [line for line in lines if "  # " not in line]
+        assert set(keys) == {f.name for f in dataclasses.fields(cls)} - shared
+    path = tmp_path / "navgw.toml"
+    path.write_text(text)
+    assert main(["config", "--check", str(path)]) == 0
 
 
 def test_output_rates_map_to_pgns() -> None:

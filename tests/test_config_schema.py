@@ -5,7 +5,7 @@ from enum import Enum
 
 import pytest
 
-from gateway.config_schema import ConfigError, from_table, in_range
+from gateway.config_schema import ConfigError, from_table, in_range, source_comments
 
 
 class Engine(Enum):
@@ -53,3 +53,34 @@ def test_errors_name_key_value_and_expectation(table: dict[str, object], message
     with pytest.raises(ConfigError) as err:
         from_table(Outer, table, "vehicle")
     assert str(err.value).startswith(message)
+
+
+@dataclass(frozen=True)
+class Commented:
+    """Fields documented as the engine tunings are: code comments, not metadata."""
+
+    # --- timing ---
+    rate_hz: float = 10.0  # how often
+    # heads the group below
+    # over two lines
+    x_m: float = 0.0
+    y_m: float = 0.0  # its own
+    z_m: float = 0.0
+
+    # --- a rule is not a field's comment ---
+    w_m: float = 0.0
+    label: str = field(
+        default="#",  # a trailing comment inside the call
+    )
+
+
+def test_source_comments_trailing_else_group_heading() -> None:
+    heading = "heads the group below over two lines"
+    assert source_comments(Commented) == {
+        "rate_hz": "how often",
+        "x_m": heading,
+        "y_m": "its own",
+        "z_m": heading,
+        "w_m": "",
+        "label": "a trailing comment inside the call",
+    }

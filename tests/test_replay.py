@@ -9,7 +9,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gateway.config import GatewayConfig, GnssSection, VehicleSection
+from gateway.config import load_config
 from gateway.replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
@@ -23,21 +23,10 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def config_for(truth: Truth) -> GatewayConfig:
-    """The vehicle geometry the simulator used, as an integrator would configure it."""
-    vehicle = VehicleSection(
-        antenna_lever_arm_m=tuple(truth.antenna_lever_arm_m),  # type: ignore[arg-type]
-        imu_lever_arm_m=tuple(truth.imu_lever_arm_m),  # type: ignore[arg-type]
-    )
-    # the simulated receiver: ~40 ms latency + serial transmission of the epoch's sentences
-    return GatewayConfig(vehicle=vehicle, gnss=GnssSection(receiver_latency_s=0.065))
-
-
 def test_output_decodes_independently_to_the_truth(run_dir: Path, tmp_path: Path) -> None:
     truth = Truth.load(run_dir / "truth.npz")
-    summary = replay(
-        run_dir / "imu.log", run_dir / "gnss.nmea", tmp_path / "out.log", config_for(truth)
-    )
+    config = load_config(run_dir / "navgw.toml")  # what navgw sim wrote for its vehicle
+    summary = replay(run_dir / "imu.log", run_dir / "gnss.nmea", tmp_path / "out.log", config)
     assert summary.stats.imu_samples == len(truth)
     assert summary.imu.lost == summary.bad_can_lines == summary.gnss.checksum_errors == 0
     messages = decode_log(tmp_path / "out.log")
@@ -93,6 +82,8 @@ def test_cli_exit_status_and_messages(run_dir: Path, tmp_path: Path) -> None:
     ok = replay_cli(run_dir, run_dir / "imu.log", tmp_path / "o.log")
     assert ok.returncode == 0, ok.stderr
     assert "IMU:" in ok.stderr and "x real time" in ok.stderr
+    # no --config: zero lever arms, said once, as navgw run says it
+    assert ok.stderr.count("antenna_lever_arm_m is zero") == 1, ok.stderr
     missing = replay_cli(run_dir, tmp_path / "nope.log", tmp_path / "o.log")
     assert missing.returncode == 2
     assert f"{tmp_path / 'nope.log'}: CAN log not found or not a file" in missing.stderr

@@ -122,7 +122,8 @@ def test_cli_writes_files_and_rejects_unknown_scenario(tmp_path: Path) -> None:
         check=False,
     )
     assert ok.returncode == 0, ok.stderr
-    assert {p.name for p in (tmp_path / "o").iterdir()} == {"imu.log", "gnss.nmea", "truth.npz"}
+    names = {p.name for p in (tmp_path / "o").iterdir()}
+    assert names == {"imu.log", "gnss.nmea", "truth.npz", "navgw.toml"}
     bad = subprocess.run(
         [sys.executable, "-m", "gateway.cli", "sim", "moon"],
         capture_output=True,

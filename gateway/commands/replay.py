@@ -84,6 +84,12 @@ def run(args: argparse.Namespace) -> int:
         config = load_config(args.config)
         if args.engine:
             config = config.with_engine(Engine(args.engine))
+        if warning := config.lever_arm_warning():
+            print(
+                f"navgw replay: warning: {warning}; set [vehicle] in a --config file (navgw "
+                "sim writes its vehicle's: navgw.toml beside the logs)",
+                file=sys.stderr,
+            )
         result = replay(args.can, args.nmea, args.out, config, _progress)
     except (ConfigError, DriverError) as err:
         print(f"navgw replay: {err}", file=sys.stderr)
