@@ -5,8 +5,8 @@ it returns::
 
     claimer = AddressClaimer(Name(identity_number=serial))
     send(claimer.start(now))
-    for each received frame:  send(claimer.on_frame(frame, now))
-    periodically:             send(claimer.poll(now))
+    for each received frame but our echo:  send(claimer.on_frame(frame, now))
+    periodically:                          send(claimer.poll(now))
     output frames only while claimer.claimed, with source address claimer.address
 
 Start-up: request for PGN 60928 (from 254 to 255), a random 0-153 ms wait (0.6 ms times a
@@ -16,14 +16,26 @@ re-send our claim; if not we claim the lowest free address of the self-configura
 128-247 (addresses claimed by others are tracked), or send cannot-claim from 254 and stop.
 Addresses given as ``reserved`` (the IMU bridge's, which sends on the same bus without
 claiming) are never taken. Requests for 60928 (global or to our address) are answered. Every
-change of address is logged. Frames carrying our own NAME are our own echo (udp_multicast
-and some adapters echo; can-j1939 floods the bus by treating them as a contender) and are
-ignored.
+change of address is logged.
+
+The caller drops the echo of our own frames before they reach :meth:`AddressClaimer.on_frame`
+(the service's :class:`~gateway.canbus.EchoFilter`; can-j1939 floods the bus by treating its
+echo as a contender). So a claim with our NAME that arrives is another node with the same
+NAME: a cloned unit (two gateways with one identity number), which ISO 11783-5 does not
+allow. A frame from our claimed address that is not a claim is another node sending from it:
+a clone or a spoofer (not counted within 250 ms of our defending the address: a contender for
+an address below 128 may send at once, until it has read our claim). Both are counted
+(``name_conflicts``, ``spoofed_frames``), logged at most once per :data:`CONFLICT_LOG_S` each,
+and make :meth:`AddressClaimer.conflict` true for :data:`CONFLICT_HOLD_S` after the last one.
+We keep our address: equal NAMEs have no winner, and moving would not stop the other node
+sending as us. The fusion core sends NAVGW_STATUS DEGRADED meanwhile (a controller cannot
+tell our frames from the other's).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 import random
 from collections.abc import Collection
 from dataclasses import dataclass
@@ -52,6 +64,8 @@ SELF_CONFIGURABLE_ADDRESSES = range(128, 248)
 CONTENTION_S = 0.25
 DELAY_STEP_S = 0.0006  # random start-up wait: 0-255 steps, 0-153 ms
 _PGN_BYTES = 3  # a requested PGN is 3 bytes, little-endian
+CONFLICT_HOLD_S = 10.0  # conflict() stays true this long after the last NAME conflict or spoof
+CONFLICT_LOG_S = 10.0  # at most one warning per kind of conflict this often
 
 
 class NameFunction(IntEnum):
@@ -127,8 +141,13 @@ class AddressClaimer:
         self._others: dict[int, int] = {}  # address -> NAME of the node holding it
         self._reserved = frozenset(reserved)  # used on the bus by nodes that do not claim
         self._deadline = 0.0
+        self._defended_until = -math.inf  # a contender we beat may send until it reads our claim
+        self._conflict_at = -math.inf  # time of the last NAME conflict or spoofed frame
+        self._warned_at: dict[str, float] = {}  # kind of conflict -> time of its last warning
         self.state = ClaimState.IDLE
         self.address: int | None = None  # held or being claimed
+        self.name_conflicts = 0  # claims with our NAME from another node
+        self.spoofed_frames = 0  # frames from our claimed address that we did not send
 
     @property
     def claimed(self) -> bool:
@@ -139,6 +158,11 @@ class AddressClaimer:
     def name(self) -> int:
         """Our NAME as a 64-bit number."""
         return self._name
+
+    def conflict(self, now: float) -> bool:
+        """True within CONFLICT_HOLD_S of the last NAME conflict or spoofed frame: frames
+        with our address may then not be ours."""
+        return now - self._conflict_at < CONFLICT_HOLD_S
 
     def start(self, now: float) -> list[can.Message]:
         """Ask every node for its claim, then wait a random 0-153 ms before claiming."""
@@ -165,6 +189,8 @@ class AddressClaimer:
         frame_id = FrameId.parse(msg.arbitration_id)
         if frame_id.pgn == Pgn.ADDRESS_CLAIM and len(msg.data) >= 8:
             return self._on_claim(frame_id.source, int.from_bytes(msg.data[:8], "little"), now)
+        if frame_id.source == self.address and self.claimed and now >= self._defended_until:
+            self._on_spoofed(frame_id.pgn, now)
         if (
             frame_id.pgn == Pgn.ISO_REQUEST
             and len(msg.data) >= _PGN_BYTES
@@ -176,7 +202,8 @@ class AddressClaimer:
 
     def _on_claim(self, source: int, name: int, now: float) -> list[can.Message]:
         if name == self._name:
-            return []  # our own echo
+            self._on_name_conflict(source, now)
+            return []
         self._others = {a: n for a, n in self._others.items() if n != name}
         if source == NULL_ADDRESS:
             return []  # someone else's cannot-claim
@@ -184,8 +211,40 @@ class AddressClaimer:
         if source != self.address or self.state not in (ClaimState.CLAIMING, ClaimState.CLAIMED):
             return []
         if self._name < name:
+            self._defended_until = now + CONTENTION_S
             return [self._claim_message(source, now)]  # we win: defend
         return self._claim_free_or_give_up(now)
+
+    def _on_name_conflict(self, source: int, now: float) -> None:
+        """Another node claims with our NAME: count, warn, mark the conflict."""
+        self.name_conflicts += 1
+        self._mark_conflict(
+            "name", now,
+            "address claim: another node claims from %s with our NAME 0x%016X: two units with "
+            "the same NAME on the bus (a cloned unit); give each a unique [isobus] "
+            "identity_number. Keeping %s; NAVGW_STATUS DEGRADED until %g s after the last "
+            "conflict (%d in all)",
+            _address_text(source), self._name, _address_text(self.address), CONFLICT_HOLD_S,
+            self.name_conflicts,
+        )  # fmt: skip
+
+    def _on_spoofed(self, pgn: int, now: float) -> None:
+        """A frame from our address that we did not send: count, warn, mark the conflict."""
+        self.spoofed_frames += 1
+        self._mark_conflict(
+            "spoof", now,
+            "address claim: a frame of PGN %d from our address %s that we did not send: "
+            "another node sends as us (a cloned unit or a spoofer); NAVGW_STATUS DEGRADED "
+            "until %g s after the last one (%d in all)",
+            pgn, _address_text(self.address), CONFLICT_HOLD_S, self.spoofed_frames,
+        )  # fmt: skip
+
+    def _mark_conflict(self, kind: str, now: float, text: str, *args: object) -> None:
+        """Start the hold of conflict(); warn at most once per CONFLICT_LOG_S per kind."""
+        self._conflict_at = now
+        if now - self._warned_at.get(kind, -math.inf) >= CONFLICT_LOG_S:
+            self._warned_at[kind] = now
+            log.warning(text, *args)
 
     def _answer_request(self, now: float) -> list[can.Message]:
         if self.state in (ClaimState.CLAIMING, ClaimState.CLAIMED) and self.address is not None:
@@ -224,6 +283,13 @@ class AddressClaimer:
 
     def _claim_message(self, source: int, now: float) -> can.Message:
         return _message(Pgn.ADDRESS_CLAIM, source, self._name_bytes, now)
+
+
+def _address_text(address: int | None) -> str:
+    """``0x1C``, or what 254 and None mean."""
+    if address == NULL_ADDRESS:
+        return "254 (cannot claim)"
+    return "no address" if address is None else f"0x{address:02X}"
 
 
 def _message(pgn: Pgn, source: int, data: bytes, now: float) -> can.Message:

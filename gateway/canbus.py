@@ -3,11 +3,16 @@
 ``[imu]`` names the bus of the IMU bridge and ``[isobus]`` the output bus; when ``[isobus]``
 leaves interface/channel unset (or names the same bus) both roles share one python-can bus
 object and one reader, and received frames are dispatched by id. The ISOBUS role receives
-only address claims (PGN 60928) and requests (PGN 59904): that is all the address claim needs.
+address claims (PGN 60928), requests (PGN 59904) and every frame from our own address (its
+filters follow the address): a frame from our address that we did not send is a clone or a
+spoofer, which the address claim must see.
 
-Echo: some interfaces (``udp_multicast``, some adapters) deliver our own transmitted frames
-back to us. :class:`EchoFilter` remembers what we sent of the PGNs we also receive, and drops
-one received copy per frame sent, so an identical frame from another node still gets through.
+Echo: some interfaces (``udp_multicast``, python-can ``virtual`` and socketcan with
+``receive_own_messages``, some adapters) deliver our own transmitted frames back to us, and
+with the filter on our address all of them get through. :class:`EchoFilter` remembers every
+frame we sent and drops one received copy per frame sent, so an identical frame from another
+node still gets through; a frame the interface marks as our own (``is_rx`` false) is dropped
+whatever was remembered.
 """
 
 from __future__ import annotations
@@ -25,10 +30,13 @@ from gateway.j1939 import Pgn
 
 #: Receive filter on the PDU format byte (and DP/EDP) of a PDU1 PGN: any source, any destination.
 PDU1_MASK = 0x03FF0000
-#: The PGNs the ISOBUS role receives: address claim and request.
+#: The PGNs the ISOBUS role receives from any node: address claim and request.
 CLAIM_PGNS = (Pgn.ADDRESS_CLAIM, Pgn.ISO_REQUEST)
+#: Receive filter on the source address byte of a 29-bit id: any PGN from one address.
+SOURCE_MASK = 0xFF
 #: errnos of a send or receive that mean the interface is gone or down, not just busy.
 BUS_DOWN_ERRNOS = frozenset({errno.ENETDOWN, errno.ENODEV, errno.ENXIO, errno.EBADF, errno.EIO})
+_Frame = tuple[int, bytes]  # arbitration id and data: what tells an echo
 
 
 @dataclass(frozen=True)
@@ -74,17 +82,16 @@ class BusPlan:
         return cls(imu, isobus)
 
 
-def claim_filters() -> list[CanFilter]:
-    """Receive filters for address claims and requests from any node."""
-    return [
+def claim_filters(address: int | None = None) -> list[CanFilter]:
+    """Receive filters for address claims and requests from any node, and for every frame
+    from ``address`` (ours, once we have one: another node sending from it must be seen)."""
+    filters: list[CanFilter] = [
         {"can_id": (int(p) << 8) & PDU1_MASK, "can_mask": PDU1_MASK, "extended": True}
         for p in CLAIM_PGNS
     ]
-
-
-def is_claim_traffic(arbitration_id: int) -> bool:
-    """True for an address claim or a request (what :func:`claim_filters` passes)."""
-    return any(arbitration_id & PDU1_MASK == (int(p) << 8) & PDU1_MASK for p in CLAIM_PGNS)
+    if address is not None:
+        filters.append({"can_id": address, "can_mask": SOURCE_MASK, "extended": True})
+    return filters
 
 
 def is_bus_down(exc: BaseException) -> bool:
@@ -95,35 +102,45 @@ def is_bus_down(exc: BaseException) -> bool:
 
 
 class EchoFilter:
-    """Recognises our own transmitted frames coming back, one received copy per frame sent."""
+    """Recognises our own transmitted frames coming back: one received copy per frame sent
+    within ``window_s`` before the copy arrived. Frames sent are kept ``keep_s`` (more than a
+    reader's backlog), so that a copy read late is still told by its arrival time."""
 
-    def __init__(self, window_s: float = 1.0) -> None:
+    def __init__(self, window_s: float = 1.0, keep_s: float = 10.0) -> None:
         self.window_s = window_s
+        self.keep_s = keep_s
         self.echoes = 0  # received frames recognised as our own
-        self._sent: dict[tuple[int, bytes], deque[float]] = {}  # frame -> wall times sent
+        self._sent: dict[_Frame, deque[float]] = {}  # frame -> wall times sent, none empty
+        self._order: deque[tuple[float, _Frame]] = deque()  # every frame kept, oldest first
 
     def sent(self, msg: can.Message, t_wall: float) -> None:
-        """Remember a frame we sent (only those that our receive filters can pass back)."""
-        if is_claim_traffic(msg.arbitration_id):
-            times = self._sent.setdefault((msg.arbitration_id, bytes(msg.data)), deque())
-            self._expire(times, t_wall)
-            times.append(t_wall)
+        """Remember a frame we sent (any: the filter on our address lets all of them back)."""
+        self._forget_before(t_wall - self.keep_s)
+        frame = (msg.arbitration_id, bytes(msg.data))
+        self._sent.setdefault(frame, deque()).append(t_wall)
+        self._order.append((t_wall, frame))
 
     def is_echo(self, msg: can.Message, t_wall: float) -> bool:
-        """True (and forgotten) if ``msg`` is a copy of a frame we sent in the last window."""
-        key = (msg.arbitration_id, bytes(msg.data))
-        times = self._sent.get(key)
-        if times is None:
-            return False
-        self._expire(times, t_wall)
-        echo = bool(times)
-        if echo:
+        """True if ``msg``, arrived at ``t_wall`` (frames come in order of arrival), is a copy
+        of a frame we sent in the window before (that copy is then forgotten), or the
+        interface says we sent it."""
+        self._forget_before(t_wall - self.window_s)
+        frame = (msg.arbitration_id, bytes(msg.data))
+        times = self._sent.get(frame)
+        if times is not None:
             times.popleft()
-            self.echoes += 1
-        if not times:
-            del self._sent[key]
+            if not times:
+                del self._sent[frame]
+        echo = times is not None or not msg.is_rx
+        self.echoes += echo
         return echo
 
-    def _expire(self, times: deque[float], t_wall: float) -> None:
-        while times and times[0] < t_wall - self.window_s:
-            times.popleft()
+    def _forget_before(self, t_wall: float) -> None:
+        """Forget the frames sent before ``t_wall`` (those not already echoed)."""
+        while self._order and self._order[0][0] < t_wall:
+            t, frame = self._order.popleft()
+            times = self._sent.get(frame)
+            if times and times[0] <= t:
+                times.popleft()
+                if not times:
+                    del self._sent[frame]

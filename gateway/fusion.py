@@ -4,7 +4,9 @@ Live service, replay and demo all drive this one class; only the sources of inpu
 time differ. Per IMU sample: propagate the engine, advance the address claim, and when a
 PGN is due (and the address is held) pass the current solution through the
 :class:`~gateway.output_guard.OutputGuard` and encode it. GNSS fixes go to the engine as they
-come; frames received from the ISOBUS go to the address claim.
+come; frames received from the ISOBUS go to the address claim. While the claim has seen a
+clone of us (our NAME, or frames from our address that we did not send), NAVGW_STATUS says
+DEGRADED.
 
 Frames come back as iterators that encode as they are taken: a caller that sends while it
 iterates puts the attitude on the bus first (see :meth:`OutputScheduler.frames`).
@@ -160,13 +162,22 @@ class FusionCore:
         self.engine.imu(sample)
         out: Iterable[can.Message] = self.claimer.poll(sample.t)
         if self.claimer.claimed and self.scheduler.is_due(sample.t):
-            sent = self.guard.check(self.engine.solution())
+            sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
             out = chain(out, self.scheduler.frames(sent, self.loop_status(sample.t)))
         return self._counted(out)
 
     def on_bus_frame(self, msg: can.Message, now: float) -> Iterator[can.Message]:
-        """A frame received from the ISOBUS (address claims and requests)."""
+        """A frame received from the ISOBUS (address claims, requests, frames from our
+        address), not our own echo."""
         return self._counted(self.claimer.on_frame(msg, now))
+
+    def _attributable(self, sol: Solution, now: float) -> Solution:
+        """``sol``, DEGRADED (or worse) while another node recently claimed our NAME or sent
+        from our address: a controller cannot tell which frames with our address are ours.
+        DEGRADED, not FAULT: our own solution is sound, and FAULT would say it is not."""
+        if self.claimer.conflict(now):
+            return replace(sol, mode=max(sol.mode, Mode.DEGRADED))
+        return sol
 
     def poll(self, now: float) -> Iterator[can.Message]:
         """Advance timers without an input (the live loop calls this when the IMU is silent)."""

@@ -5,9 +5,10 @@ Tasks of one event loop (no threads of ours; the estimator is fast and runs inli
 - one CAN task per distinct bus (:class:`~gateway.canbus.BusPlan`): opens the bus, retrying
   with back-off while it is absent or down, reads it through
   :class:`~drivers.canbus.FrameReader`, stamps each frame with the service time, records and
-  decodes IMU frames into the inbox, and hands address claims and requests (not our own
-  echo) to the core at once: a lower NAME that takes our address must silence us as soon as
-  its claim is read, not after the IMU backlog queued before it;
+  decodes IMU frames into the inbox, and hands address claims, requests and frames from our
+  own address (not our own echo) to the core at once: a lower NAME that takes our address
+  must silence us as soon as its claim is read, not after the IMU backlog queued before it.
+  The ISOBUS filters follow our address, so that another node sending from it is seen;
 - the GNSS task: fixes from :class:`~drivers.gnss_serial.GnssSerialReader` (which reconnects)
   into a queue of their own, where each waits until the IMU stream has reached its time: an
   overloaded inbox drops IMU samples, never a fix;
@@ -43,6 +44,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import can
+from can.typechecking import CanFilter
 
 from drivers.canbus import FrameReader
 from drivers.errors import BusError
@@ -171,6 +173,7 @@ class BusLink:
     waiting: str | None = "not opened yet"
     reopens: int = 0
     host_stamps: bool | None = None  # the interface stamps frames on the host clock (1st frame)
+    source_filter: int | None = None  # our address as the open bus's filters pass it (ISOBUS)
 
     @property
     def roles(self) -> str:
@@ -299,7 +302,6 @@ class GatewayService:
 
     async def _run_bus(self, link: BusLink) -> None:
         backoff = Backoff()
-        filters = (self._imu_filters if link.imu else []) + (claim_filters() if link.isobus else [])
         reported = False
         while True:
             try:
@@ -315,7 +317,7 @@ class GatewayService:
             reported = False
             try:
                 with bus:
-                    async with FrameReader(bus, filters) as reader:
+                    async with FrameReader(bus, self._filters(link)) as reader:
                         link.bus, link.reader, link.waiting = bus, reader, None
                         link.host_stamps = None
                         log.info("CAN %s open (%s)", link.spec, link.roles)
@@ -405,9 +407,26 @@ class GatewayService:
 
     # --- frames in and out ----------------------------------------------------------------
 
+    def _filters(self, link: BusLink) -> list[CanFilter]:
+        """The link's receive filters: the IMU's, and claims, requests and frames from our
+        current address (noted in ``link.source_filter``) for the ISOBUS."""
+        if not link.isobus:
+            return list(self._imu_filters)
+        link.source_filter = self.core.claimer.address
+        imu = self._imu_filters if link.imu else []
+        return imu + claim_filters(link.source_filter)
+
+    def _follow_address(self) -> None:
+        """Re-filter the ISOBUS when our address has changed (claimed, or moved)."""
+        link = self.isobus
+        if link.bus is not None and self.core.claimer.address != link.source_filter:
+            link.bus.set_filters(self._filters(link))
+
     def _on_frame(self, link: BusLink, msg: can.Message) -> None:
-        """Stamp a received frame with the service time and route it."""
-        msg.timestamp = self.timebase.at(self._host_time(link, msg))
+        """Stamp a received frame with the service time and route it. Our echo is told by its
+        arrival time: read late, behind a backlog, it is still ours (not a spoofed frame)."""
+        host_time = self._host_time(link, msg)
+        msg.timestamp = self.timebase.at(host_time)
         if link.imu and msg.arbitration_id & PGN_SA_MASK in self._imu_ids:
             self._last_imu_t = msg.timestamp
             if self.recorder is not None:
@@ -415,7 +434,7 @@ class GatewayService:
             for item in self.imu_decoder.feed(msg):
                 if self.inbox.offer(item):
                     self.core.stats.imu_dropped += 1
-        elif link.isobus and not self.echo.is_echo(msg, time.time()):
+        elif link.isobus and not self.echo.is_echo(msg, host_time):
             self._send(self.core.on_bus_frame(msg, msg.timestamp))
 
     def _host_time(self, link: BusLink, msg: can.Message) -> float:
@@ -457,6 +476,7 @@ class GatewayService:
             else:
                 self.stats.frames_sent += 1
                 self.echo.sent(msg, time.time())
+        self._follow_address()
 
     # --- status ---------------------------------------------------------------------------
 
@@ -491,6 +511,10 @@ class GatewayService:
             parts.append(f"{self.core.guard.withheld} implausible outputs withheld")
         if self.stats.send_errors:
             parts.append(f"{self.stats.send_errors} send errors")
+        if self.core.claimer.name_conflicts:
+            parts.append(f"{self.core.claimer.name_conflicts} claims with our NAME (a clone)")
+        if self.core.claimer.spoofed_frames:
+            parts.append(f"{self.core.claimer.spoofed_frames} frames from our address not ours")
         return ", ".join(parts)
 
 

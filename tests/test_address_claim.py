@@ -1,17 +1,31 @@
-"""Address claim on python-can ``virtual`` buses: our state machine against raw nodes."""
+"""Address claim on python-can ``virtual`` buses: our state machine against raw nodes.
 
+The buses echo what we send (``receive_own_messages``, as udp_multicast and socketcan's
+loopback do); as in the live service, received frames go through
+:class:`~gateway.canbus.EchoFilter` before the claimer. Echoes are marked as ours by the
+virtual bus (``is_rx`` false) or, like udp_multicast's, look received (``marks_own=False``).
+"""
+
+import heapq
 import logging
 import random
+from collections.abc import Iterable, Iterator
+from operator import attrgetter
 
 import can
 import pytest
 from nmea2000 import _canboat
 
-from gateway.address_claim import AddressClaimer, ClaimState, Name
+from drivers.samples import GnssFix, ImuSample
+from gateway.address_claim import CONFLICT_HOLD_S, AddressClaimer, ClaimState, Name
+from gateway.canbus import EchoFilter, claim_filters
+from gateway.config import GatewayConfig
+from gateway.fusion import FusionCore
 from gateway.j1939 import FrameId, IndustryGroup, Pgn, can_id
 from gateway.n2k_encode import LoopStatus
 from gateway.scheduler import OutputScheduler
 from gateway.solution import Mode, Solution
+from tests.kinematics import T0_S, Motion, Segment, gnss_stream, imu_stream
 
 NAME = Name(identity_number=123456, manufacturer_code=2046, ecu_instance=1, function_instance=2)
 OURS = NAME.value()
@@ -34,20 +48,37 @@ def request_frame(source: int, destination: int) -> can.Message:
     )
 
 
+def frame_from(pgn: int, source: int, data: bytes = bytes(8)) -> can.Message:
+    """Any frame of ``pgn`` from ``source`` (priority 2, as our attitude)."""
+    return can.Message(arbitration_id=can_id(pgn, source, 2), is_extended_id=True, data=data)
+
+
+def received(bus: can.BusABC, marks_own: bool) -> Iterator[can.Message]:
+    """What ``bus`` has received; with ``marks_own`` false, our echoes look received too."""
+    while (msg := bus.recv(0)) is not None:
+        msg.is_rx = msg.is_rx or not marks_own
+        yield msg
+
+
 class Node:
     """Our claimer plus the output scheduler behind a virtual bus, driven by a test clock."""
 
-    def __init__(self, channel: str, seed: int = 1, reserved: tuple[int, ...] = ()) -> None:
+    def __init__(
+        self, channel: str, seed: int = 1, reserved: tuple[int, ...] = (), marks_own: bool = True
+    ) -> None:
         # receive_own_messages: the bus echoes our frames, as udp_multicast does
         self.bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=True)
         self.claimer = AddressClaimer(NAME, rng=random.Random(seed), reserved=reserved)
         self.scheduler = OutputScheduler()
+        self.echo = EchoFilter()
+        self.marks_own = marks_own
         self.now = 1_700_000_000.0
         self.sent: list[can.Message] = []
 
     def send(self, frames: list[can.Message]) -> None:
         for frame in frames:
             self.bus.send(frame)
+            self.echo.sent(frame, self.now)
             self.sent.append(frame)
 
     def start(self) -> None:
@@ -55,8 +86,9 @@ class Node:
 
     def run(self, seconds: float) -> None:
         for _ in range(round(seconds / STEP_S)):
-            while (msg := self.bus.recv(0)) is not None:
-                self.send(self.claimer.on_frame(msg, self.now))
+            for msg in received(self.bus, self.marks_own):
+                if not self.echo.is_echo(msg, self.now):
+                    self.send(self.claimer.on_frame(msg, self.now))
             self.send(self.claimer.poll(self.now))
             if self.claimer.claimed:
                 assert self.claimer.address is not None
@@ -268,3 +300,197 @@ def test_a_reserved_address_is_never_taken_and_every_move_is_logged(
     finally:
         node.bus.shutdown()
         raw.bus.shutdown()
+
+
+@pytest.mark.parametrize("marks_own", [True, False], ids=["virtual", "udp-like"])
+def test_our_own_echoes_are_no_conflict(marks_own: bool) -> None:
+    """On a bus that echoes, our claim and output come back: not a clone, not a spoof."""
+    channel = f"claim-echo-{marks_own}"
+    node, raw = Node(channel, marks_own=marks_own), Raw(channel)
+    try:
+        node.start()
+        node.run(1.0)
+        raw.bus.send(request_frame(0x40, 255))  # our answer is echoed too
+        node.run(0.1)
+        assert node.claimer.claimed and node.claims() == [0x1C, 0x1C]
+        assert node.claimer.name_conflicts == node.claimer.spoofed_frames == 0
+        assert not node.claimer.conflict(node.now)
+        assert node.echo.echoes >= len(node.sent) - 10  # all but the last step's
+        assert len(node.sent) > 100
+    finally:
+        node.bus.shutdown()
+        raw.bus.shutdown()
+
+
+@pytest.mark.parametrize("source", [0x1C, 0x40, 254], ids=["our-address", "other", "cannot"])
+def test_a_claim_with_our_name_is_a_clone_and_we_keep_our_address(
+    buses, source: int, caplog: pytest.LogCaptureFixture
+) -> None:
+    node, raw = buses
+    node.start()
+    node.run(0.6)
+    with caplog.at_level(logging.WARNING, logger="gateway.address_claim"):
+        raw.bus.send(claim_frame(source, OURS))
+        node.run(0.1)
+    conflict_at = node.now - 0.1
+    assert node.claimer.name_conflicts == 1 and node.claimer.spoofed_frames == 0
+    assert node.claimer.claimed and node.claimer.address == 0x1C
+    assert node.claims() == [0x1C]  # neither moved nor re-claimed: equal NAMEs have no winner
+    assert node.claimer.conflict(node.now)
+    assert not node.claimer.conflict(conflict_at + CONFLICT_HOLD_S + STEP_S)
+    [text] = [r.getMessage() for r in caplog.records]
+    assert f"NAME 0x{OURS:016X}" in text and "same NAME" in text and "identity_number" in text
+
+
+def test_a_contender_we_beat_may_send_until_it_has_read_our_claim(buses) -> None:
+    """A claim for an address below 128 may be followed by output at once (J1939-81): those
+    frames, sent before our defence reached the contender, are no spoof; later ones are."""
+    node, raw = buses
+    node.start()
+    node.run(0.6)
+    raw.bus.send(claim_frame(0x1C, OURS + 1))
+    raw.bus.send(frame_from(Pgn.ATTITUDE, 0x1C))
+    node.run(0.2)
+    assert node.claims() == [0x1C, 0x1C]  # defended
+    assert node.claimer.spoofed_frames == 0 and not node.claimer.conflict(node.now)
+    node.run(0.1)
+    raw.bus.send(frame_from(Pgn.ATTITUDE, 0x1C))  # still sending as us: a spoofer
+    node.run(0.01)
+    assert node.claimer.spoofed_frames == 1 and node.claimer.conflict(node.now)
+
+
+def test_frames_from_the_address_we_left_are_not_ours_to_count(buses) -> None:
+    node, raw = buses
+    node.start()
+    node.run(0.6)
+    raw.bus.send(claim_frame(0x1C, OURS - 1))
+    node.run(0.4)
+    assert node.claimer.claimed and node.claimer.address == 128
+    raw.bus.send(frame_from(Pgn.ATTITUDE, 0x1C))  # the winner's output: its address now
+    node.run(0.01)
+    assert node.claimer.spoofed_frames == node.claimer.name_conflicts == 0
+    raw.bus.send(frame_from(Pgn.ATTITUDE, 128))
+    node.run(0.01)
+    assert node.claimer.spoofed_frames == 1
+
+
+# --- the fusion core: NAVGW_STATUS while a clone or a spoofer is about -----------------------
+
+MOTION = Motion([Segment(10.0), Segment(5.0, accel_mps2=0.6), Segment(25.0)])
+NAVIGATING_FROM_S = 14.0  # aligned and navigating on the default config from here on
+CONFLICT_AT_S = 20.0
+
+
+class Gateway:
+    """The real FusionCore from the default config behind a virtual bus that echoes, fed exact
+    motion in time order as replay does. Received frames pass the service's receive filters
+    (following our address) and EchoFilter before the core, as in the live service."""
+
+    def __init__(self, channel: str, marks_own: bool = True) -> None:
+        self.bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=True)
+        self.bus.set_filters(claim_filters())
+        self.core = FusionCore.from_config(GatewayConfig())
+        self.echo = EchoFilter()
+        self.marks_own = marks_own
+        self.sent: list[can.Message] = []
+        self._filtered: int | None = None
+        self._inputs: Iterator[ImuSample | GnssFix] = heapq.merge(
+            imu_stream(MOTION), gnss_stream(MOTION), key=attrgetter("t")
+        )
+        self.send(self.core.start(T0_S), T0_S)
+
+    def run(self, until_s: float) -> None:
+        """Feed the inputs up to motion time ``until_s``, each after the frames received."""
+        for item in self._inputs:
+            self.receive(item.t)
+            self.send(self.core.on_input(item), item.t)
+            if item.t >= T0_S + until_s:
+                return
+
+    def receive(self, now: float) -> None:
+        for msg in received(self.bus, self.marks_own):
+            if not self.echo.is_echo(msg, now):
+                self.send(self.core.on_bus_frame(msg, now), now)
+
+    def send(self, frames: Iterable[can.Message], now: float) -> None:
+        for frame in frames:
+            self.bus.send(frame)
+            self.echo.sent(frame, now)
+            self.sent.append(frame)
+        if self.core.claimer.address != self._filtered:
+            self._filtered = self.core.claimer.address
+            self.bus.set_filters(claim_filters(self._filtered))
+
+    def modes(self, from_s: float, to_s: float) -> set[Mode]:
+        """NAVGW_STATUS byte 2 of the frames sent in [from_s, to_s) of motion time."""
+        return {
+            Mode(f.data[2])
+            for f in self.sent
+            if FrameId.parse(f.arbitration_id).pgn == Pgn.NAVGW_STATUS
+            and T0_S + from_s <= f.timestamp < T0_S + to_s
+        }
+
+
+@pytest.fixture
+def gateway(request: pytest.FixtureRequest) -> Iterator[tuple[Gateway, Raw]]:
+    channel = f"gw-{request.node.name}"
+    gw, raw = Gateway(channel, getattr(request, "param", True)), Raw(channel)
+    yield gw, raw
+    gw.bus.shutdown()
+    raw.bus.shutdown()
+
+
+@pytest.mark.parametrize("gateway", [True, False], ids=["virtual", "udp-like"], indirect=True)
+def test_the_gateways_own_echoes_leave_status_navigating(gateway) -> None:
+    gw, _ = gateway
+    gw.run(MOTION.duration_s)
+    gw.receive(T0_S + MOTION.duration_s + 0.01)
+    assert gw.echo.echoes == len(gw.sent) > 10_000  # every frame came back, and was told ours
+    assert gw.core.claimer.name_conflicts == gw.core.claimer.spoofed_frames == 0
+    assert gw.modes(NAVIGATING_FROM_S, MOTION.duration_s) == {Mode.NAVIGATING}
+
+
+def test_a_clone_claiming_our_name_makes_status_degraded_for_the_hold_time(
+    gateway, caplog: pytest.LogCaptureFixture
+) -> None:
+    gw, raw = gateway
+    gw.run(CONFLICT_AT_S)
+    ours = gw.core.claimer.name
+    with caplog.at_level(logging.WARNING, logger="gateway.address_claim"):
+        raw.bus.send(claim_frame(0x40, ours))  # a second unit flashed with our identity
+        gw.run(CONFLICT_AT_S + 2.0)
+        raw.bus.send(claim_frame(0x40, ours))  # it answers a request: within 10 s, not logged
+        gw.run(MOTION.duration_s)
+    claimer = gw.core.claimer
+    assert claimer.name_conflicts == 2 and claimer.spoofed_frames == 0
+    assert claimer.claimed and claimer.address == 0x1C
+    [text] = [r.getMessage() for r in caplog.records]
+    assert "from 0x40" in text and f"NAME 0x{ours:016X}" in text and "identity_number" in text
+    held_to = CONFLICT_AT_S + 2.0 + CONFLICT_HOLD_S
+    assert gw.modes(NAVIGATING_FROM_S, CONFLICT_AT_S) == {Mode.NAVIGATING}
+    assert gw.modes(CONFLICT_AT_S + 0.1, held_to) == {Mode.DEGRADED}
+    assert gw.modes(held_to + 0.1, MOTION.duration_s) == {Mode.NAVIGATING}
+
+
+@pytest.mark.parametrize("pgn", [Pgn.ATTITUDE, Pgn.NAVGW_STATUS])
+def test_frames_sent_as_us_by_another_node_make_status_degraded(
+    gateway, caplog: pytest.LogCaptureFixture, pgn: Pgn
+) -> None:
+    gw, raw = gateway
+    gw.run(CONFLICT_AT_S - 1.0)
+    raw.bus.send(frame_from(pgn, 0x40, bytes(range(8))))  # another node's own: not ours
+    gw.run(CONFLICT_AT_S)
+    assert gw.core.claimer.spoofed_frames == 0
+    with caplog.at_level(logging.WARNING, logger="gateway.address_claim"):
+        for _ in range(3):
+            raw.bus.send(frame_from(pgn, 0x1C, bytes(range(8))))
+            gw.run(gw.core.solution().t - T0_S + 0.5)
+    claimer = gw.core.claimer
+    assert claimer.spoofed_frames == 3 and claimer.name_conflicts == 0
+    [text] = [r.getMessage() for r in caplog.records]
+    assert f"PGN {int(pgn)} from our address 0x1C" in text and "DEGRADED" in text
+    held_to = CONFLICT_AT_S + 1.0 + CONFLICT_HOLD_S
+    gw.run(MOTION.duration_s)
+    assert gw.modes(NAVIGATING_FROM_S, CONFLICT_AT_S) == {Mode.NAVIGATING}
+    assert gw.modes(CONFLICT_AT_S + 0.1, held_to) == {Mode.DEGRADED}
+    assert gw.modes(held_to + 0.1, MOTION.duration_s) == {Mode.NAVIGATING}

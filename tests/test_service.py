@@ -4,9 +4,12 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import json
+import random
 import subprocess
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 
 import can
@@ -63,18 +66,28 @@ def test_reader_drops_oldest_when_full_and_ends_with_bus_error() -> None:
     assert isinstance(error, BusError) and "failed" in str(error)
 
 
-def test_claim_filters_pass_claims_and_requests_only() -> None:
+def test_claim_filters_pass_claims_requests_and_frames_from_our_address() -> None:
     ch = channel()
     with (
         can.Bus(interface="virtual", channel=ch) as rx,
         can.Bus(interface="virtual", channel=ch) as tx,
     ):
-        rx.set_filters(claim_filters())
-        for pgn, dest in ((Pgn.ADDRESS_CLAIM, 255), (Pgn.ISO_REQUEST, 0x1C), (Pgn.ATTITUDE, 255)):
-            tx.send(can.Message(arbitration_id=can_id(pgn, 0x33, 6, dest), data=b"\0" * 8))
-        got = [rx.recv(0.2) for _ in range(3)]
-    pgns = [None if m is None else (m.arbitration_id >> 16) & 0xFF for m in got]
-    assert pgns == [0xEE, 0xEA, None]
+        for address, passed in ((None, ["EE33", "EA33"]), (0x1C, ["EE33", "EA33", "F11C"])):
+            rx.set_filters(claim_filters(address))
+            for pgn, source in (
+                (Pgn.ADDRESS_CLAIM, 0x33),
+                (Pgn.ISO_REQUEST, 0x33),
+                (Pgn.ATTITUDE, 0x33),
+                (Pgn.ATTITUDE, 0x1C),
+            ):
+                tx.send(can.Message(arbitration_id=can_id(pgn, source, 6, 0x1C), data=bytes(8)))
+            tx.send(can.Message(arbitration_id=0x1C, is_extended_id=False, data=bytes(8)))
+            got = []
+            while (msg := rx.recv(0.2)) is not None:
+                got.append(
+                    f"{(msg.arbitration_id >> 16) & 0xFF:02X}{msg.arbitration_id & 0xFF:02X}"
+                )
+            assert got == passed
 
 
 def test_echo_filter_drops_one_copy_per_frame_sent() -> None:
@@ -85,8 +98,18 @@ def test_echo_filter_drops_one_copy_per_frame_sent() -> None:
     assert not echo.is_echo(request, 100.002)  # the same frame again: another node's
     echo.sent(request, 100.0)
     assert not echo.is_echo(request, 101.5)  # too late to be our echo
-    echo.sent(frame(1, can_id(Pgn.ATTITUDE, 0x1C, 2)), 100.0)  # not receivable: not kept
-    assert not echo.is_echo(frame(1, can_id(Pgn.ATTITUDE, 0x1C, 2)), 100.0)
+    attitude = frame(1, can_id(Pgn.ATTITUDE, 0x1C, 2))  # from our address: it comes back too
+    echo.sent(attitude, 102.0)
+    echo.sent(attitude, 102.5)
+    assert echo.is_echo(attitude, 102.6) and echo.is_echo(attitude, 102.6)
+    assert not echo.is_echo(attitude, 102.6)
+    for i in range(3000):  # 3 s of output, read behind a backlog: told by arrival time
+        echo.sent(frame(i, can_id(Pgn.ATTITUDE, 0x1C, 2)), 103.0 + i * 0.001)
+    assert echo.is_echo(frame(0, can_id(Pgn.ATTITUDE, 0x1C, 2)), 103.0005)
+    own = frame(2, can_id(Pgn.ATTITUDE, 0x1C, 2))
+    own.is_rx = False  # the interface says we sent it (virtual, socketcan): ours, kept or not
+    assert echo.is_echo(own, 110.0)
+    assert echo.echoes == 5
 
 
 def test_inbox_drops_the_oldest_input_and_counts() -> None:
@@ -137,6 +160,85 @@ def test_service_reopens_a_bus_that_goes_away_and_claims_again(tmp_path: Path) -
 
     claims, reopens, status = asyncio.run(main())
     assert (claims, reopens, status) == (2, 1, 0)
+
+
+GROUP = "239.74.163.2"  # python-can's udp_multicast default group; the port is the test's own
+
+
+@pytest.fixture
+def multicast_port(monkeypatch: pytest.MonkeyPatch) -> int:
+    """A udp_multicast port of the test's own (through CAN_CONFIG, as python-can reads it);
+    skips where the group does not loop back within the process."""
+    port = random.randrange(44000, 44999)
+    monkeypatch.setenv("CAN_CONFIG", json.dumps({"port": port}))
+    try:
+        with (
+            can.Bus(interface="udp_multicast", channel=GROUP) as a,
+            can.Bus(interface="udp_multicast", channel=GROUP) as b,
+        ):
+            a.send(frame(0))
+            looped = b.recv(1.0) is not None
+    except (can.CanError, OSError) as exc:
+        pytest.skip(f"udp_multicast not available here: {exc}")
+    if not looped:
+        pytest.skip("udp_multicast does not loop back here (route the group to lo)")
+    return port
+
+
+async def until(condition: Callable[[], object], timeout_s: float = 3.0) -> None:
+    """Wait for ``condition`` (polled every 20 ms); fail after ``timeout_s``."""
+    deadline = time.monotonic() + timeout_s
+    while not condition():
+        assert time.monotonic() < deadline, "timed out"
+        await asyncio.sleep(0.02)
+
+
+def claim(source: int, name: int) -> can.Message:
+    return can.Message(
+        arbitration_id=can_id(Pgn.ADDRESS_CLAIM, source, 6), data=name.to_bytes(8, "little")
+    )
+
+
+@pytest.mark.live
+def test_service_on_an_echoing_bus_tells_its_echo_from_a_clone(multicast_port: int) -> None:
+    """udp_multicast gives the service its own frames back, also through the filter on its
+    address: none counts as a clone; another node's claim with our NAME and frames from our
+    address do, and the filter follows our address when a lower NAME takes 0x1C."""
+    config = GatewayConfig(imu=ImuSection(interface="udp_multicast", channel=GROUP))
+    status = frame(3, can_id(Pgn.NAVGW_STATUS, 0x1C, 6))
+
+    async def main() -> None:
+        service = GatewayService(config)
+        claimer = service.core.claimer
+        with can.Bus(interface="udp_multicast", channel=GROUP) as peer:
+            running = asyncio.create_task(service.run())
+            try:
+                await until(lambda: claimer.claimed)
+                await asyncio.sleep(1.0)  # NAVGW_STATUS (FAULT: no IMU) at 10 Hz, echoed
+                assert service.echo.echoes >= 8
+                assert claimer.name_conflicts == claimer.spoofed_frames == 0
+                peer.send(status)  # another node sends as us
+                await until(lambda: claimer.spoofed_frames == 1)
+                peer.send(claim(0x40, claimer.name))  # a clone of us
+                await until(lambda: claimer.name_conflicts == 1)
+                assert claimer.conflict(service.timebase.now())
+                line = service.status_line()
+                assert "1 claims with our NAME" in line and "1 frames from our address" in line
+                peer.send(claim(0x1C, claimer.name - 1))  # a lower NAME takes 0x1C
+                await until(lambda: claimer.claimed and claimer.address == 0x81)
+                echoes = service.echo.echoes
+                await asyncio.sleep(0.5)
+                assert service.echo.echoes >= echoes + 4  # ours from 0x81 pass the new filter
+                peer.send(status)  # 0x1C is the other node's now
+                peer.send(frame(3, can_id(Pgn.NAVGW_STATUS, 0x81, 6)))
+                await until(lambda: claimer.spoofed_frames == 2)
+                await asyncio.sleep(0.2)
+                assert (claimer.spoofed_frames, claimer.name_conflicts) == (2, 1)
+            finally:
+                service.request_stop()
+                assert await running == 0
+
+    asyncio.run(main())
 
 
 def navgw(*args: str) -> subprocess.CompletedProcess[str]:
