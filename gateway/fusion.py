@@ -55,6 +55,15 @@ IMU_SILENT_S = 0.2
 RESTART_GAP_S = 1.0
 
 
+@dataclass(frozen=True, slots=True)
+class BusFrame:
+    """An ISOBUS frame from a recording (another node's address claim or request), at the
+    time it was received: replay feeds it to the claimer as the live service does."""
+
+    t: float
+    msg: can.Message
+
+
 @dataclass
 class FusionStats:
     """Counts of what went through the core."""
@@ -122,10 +131,12 @@ class FusionCore:
         """Begin the address claim; nothing else is sent until it completes."""
         return self._counted(self.claimer.start(now))
 
-    def on_input(self, item: ImuSample | ImuAux | GnssFix) -> Iterator[can.Message]:
+    def on_input(self, item: ImuSample | ImuAux | GnssFix | BusFrame) -> Iterator[can.Message]:
         """Dispatch one decoded input; returns the frames to send now."""
         if isinstance(item, ImuSample):
             return self.on_imu(item)
+        if isinstance(item, BusFrame):
+            return self.on_bus_frame(item.msg, item.t)
         if isinstance(item, GnssFix):
             self.stats.gnss_fixes += 1
             self.engine.gnss(item)

@@ -59,6 +59,7 @@ def replay(
     config = config or GatewayConfig()
     inputs = LogInputs(can_log, nmea_log, imu_config(config))
     core = FusionCore.from_config(config, inputs.imu_decoder.counters)
+    inputs.own_name = core.claimer.name  # the recorded gateway's own claims are no one else's
     stream: Iterable[Input] = progress(inputs, inputs) if progress else inputs
     t_first = t_last = None
     wall = time.perf_counter()

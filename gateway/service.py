@@ -50,6 +50,7 @@ from drivers.canbus import FrameReader
 from drivers.errors import BusError
 from drivers.gnss_serial import GnssSerialReader
 from drivers.imu_can import PGN_SA_MASK, ImuDecoder
+from drivers.log_limit import LogLimiter
 from drivers.nmea import NmeaDecoder
 from drivers.samples import GnssFix, ImuAux, ImuSample
 from gateway.address_claim import ClaimState
@@ -72,31 +73,10 @@ HOLD_MAX_S = 0.2  # a GNSS fix waits at most this long for the IMU to reach its 
 MAX_SAMPLE_AGE_S = 0.1
 STATUS_INTERVAL_S = 2.0  # sd_notify STATUS, wall seconds
 HEARTBEAT_MAX_S = 2.0  # the tick or the core stalled this long (wall): unhealthy
-LOG_INTERVAL_S = 10.0  # at most one warning per kind of trouble this often (wall)
 CLOCK_MISMATCH_S = 5.0  # frame timestamps this far from the host clock are not host time
 TURN_S = 0.001  # a task with work queued lets the loop run the others after this long
 
 Input = ImuSample | ImuAux  # what the inbox carries (fixes wait in a queue of their own)
-
-
-class LogLimiter:
-    """At most one warning per ``interval_s`` for one kind of trouble; counts the rest."""
-
-    def __init__(self, logger: logging.Logger, interval_s: float = LOG_INTERVAL_S) -> None:
-        self.logger = logger
-        self.interval_s = interval_s
-        self._last = -math.inf
-        self._suppressed = 0
-
-    def warning(self, text: str, *args: object) -> None:
-        """Log now, or count it if the last warning is recent."""
-        now = time.monotonic()
-        if now - self._last < self.interval_s:
-            self._suppressed += 1
-            return
-        more = f" ({self._suppressed} more since the last report)" if self._suppressed else ""
-        self.logger.warning(text + more, *args)
-        self._last, self._suppressed = now, 0
 
 
 class Turns:
@@ -129,8 +109,10 @@ class Inbox:
         if dropped:
             self._queue.get_nowait()
             self.overloads += 1
-            self._log.warning("fusion loop overloaded: oldest input dropped (%d in all)",
-                              self.overloads)  # fmt: skip
+            self._log.warning(
+                time.monotonic(),
+                f"fusion loop overloaded: oldest input dropped ({self.overloads} in all)",
+            )
         self._queue.put_nowait(item)
         return dropped
 
@@ -253,8 +235,8 @@ class GatewayService:
         """
         if self.recorder is not None:
             self.recorder.open()
-        if not any(self.config.vehicle.antenna_lever_arm_m):
-            log.warning("[vehicle] antenna_lever_arm_m is zero: the reference point is the antenna")
+        if warning := self.config.lever_arm_warning():
+            log.warning(warning)
         jobs = {f"can {link.spec}": self._run_bus(link) for link in self.links}
         jobs |= {"gnss": self._run_gnss(), "core": self._run_core(), "tick": self._run_tick()}
         jobs["health"] = self._run_health()
@@ -352,9 +334,11 @@ class GatewayService:
                 if self.timebase.now() - item.t > MAX_SAMPLE_AGE_S:
                     self.stats.stale_samples += 1
                     self.core.stats.imu_dropped += 1
-                    self._stale_log.warning("fusion loop behind: IMU samples older than %g s "
-                                            "dropped (%d in all)", MAX_SAMPLE_AGE_S,
-                                            self.stats.stale_samples)  # fmt: skip
+                    self._stale_log.warning(
+                        time.monotonic(),
+                        f"fusion loop behind: IMU samples older than {MAX_SAMPLE_AGE_S:g} s "
+                        f"dropped ({self.stats.stale_samples} in all)",
+                    )
                     await turns.take()
                     continue
             self._send(self.core.on_input(item))
@@ -468,8 +452,11 @@ class GatewayService:
                 bus.send(msg, timeout=0)
             except (can.CanError, OSError) as exc:
                 self.stats.send_errors += 1
-                self._send_log.warning("send on CAN %s failed: %s (%d send errors in all)",
-                                       link.spec, exc, self.stats.send_errors)  # fmt: skip
+                self._send_log.warning(
+                    time.monotonic(),
+                    f"send on CAN {link.spec} failed: {exc} "
+                    f"({self.stats.send_errors} send errors in all)",
+                )
                 if is_bus_down(exc) and link.reader is not None:
                     link.reader.fail(exc)  # the CAN task reopens the bus
                     bus = None

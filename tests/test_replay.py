@@ -6,11 +6,16 @@ import subprocess
 import sys
 from pathlib import Path
 
+import can
 import numpy as np
 import pytest
 
 from gateway.config import load_config
+from gateway.fusion import FusionCore
+from gateway.j1939 import Pgn, can_id
 from gateway.replay import replay
+from gateway.solution import Mode
+from sim_bus.canlog import CandumpWriter, read_candump
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
 from tests.n2k_check import attitude_errors_deg, decode_log, position_errors_m
@@ -61,6 +66,56 @@ def test_damaged_logs_are_counted_not_fatal(run_dir: Path, tmp_path: Path) -> No
     accel_frames = sum(" 0CFF1180#" in line for line in lines[:10000])  # each closes a sample
     assert summary.stats.imu_samples == accel_frames  # every intact sample survives
     assert summary.stats.frames_out > 0
+
+
+def test_other_nodes_claims_and_requests_replay_into_our_answers(
+    run_dir: Path, tmp_path: Path
+) -> None:
+    """SPEC 5: CAN frames that are not the IMU bridge's are received from the ISOBUS. At 30 s
+    a node requests claims (we answer from 0x1C); at 40 s a lower NAME takes 0x1C (we move
+    to 0x81, never the bridge's 0x80); the recorded gateway's own claim (our NAME) is ours,
+    not a clone: STATUS stays as it was."""
+    config = load_config(run_dir / "navgw.toml")
+    ours = FusionCore.from_config(config).claimer.name
+    lines = (run_dir / "imu.log").read_text().splitlines(keepends=True)
+    t0 = float(lines[0].split(")")[0].strip("("))
+    claim, request = Pgn.ADDRESS_CLAIM, Pgn.ISO_REQUEST
+    others = [  # time after the log's start, source, PGN, data
+        (5.0, 0x1C, claim, ours.to_bytes(8, "little")),
+        (30.0, 0xFE, request, int(claim).to_bytes(3, "little")),
+        (40.0, 0x1C, claim, (1).to_bytes(8, "little")),
+    ]
+    extra = tmp_path / "extra.log"
+    with CandumpWriter(extra, "can0") as w:
+        for t, source, pgn, data in others:
+            w.write(can.Message(timestamp=t0 + t, arbitration_id=can_id(pgn, source, 6), data=data))
+    merged = tmp_path / "imu.log"
+    merged.write_text(
+        "".join(
+            sorted(
+                lines + extra.read_text().splitlines(keepends=True),
+                key=lambda line: float(line.split(")")[0].strip("(")),
+            )
+        )
+    )
+    out = tmp_path / "out.log"
+    replay(merged, run_dir / "gnss.nmea", out, config)
+    frames = read_candump(out)
+    claims = [
+        (f.timestamp - t0, f.arbitration_id & 0xFF)
+        for f in frames
+        if (f.arbitration_id >> 8) & 0x3FF00 == Pgn.ADDRESS_CLAIM
+    ]
+    assert [a for t, a in claims if 29.0 < t < 31.0] == [0x1C]  # the request answered
+    assert [a for t, a in claims if 39.0 < t < 41.0] == [0x81]  # moved, not onto the bridge
+    sources = {f.arbitration_id & 0xFF for f in frames if f.timestamp - t0 > 41.0}
+    assert sources == {0x81}
+    modes = {
+        f.data[2]
+        for f in frames
+        if (f.arbitration_id >> 8) & 0x3FFFF == 0xFF22 and 5.0 < f.timestamp - t0 < 30.0
+    }
+    assert int(Mode.DEGRADED) not in modes, modes  # the recorded own claim is not a clone
 
 
 def navgw(*args: str) -> subprocess.CompletedProcess[str]:
