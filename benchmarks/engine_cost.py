@@ -16,9 +16,9 @@ import time
 from collections.abc import Callable
 
 from drivers.samples import GnssFix, ImuSample
-from gateway.config import Engine, GatewayConfig, GnssSection, VehicleSection
-from gateway.log_inputs import Input, LogInputs
-from gateway.solution import Estimator
+from gateway.config.gateway_config import Engine, GatewayConfig, GnssSection, VehicleSection
+from gateway.estimation.solution import Estimator
+from gateway.offline.log_inputs import Input, LogInputs
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
 

@@ -9,7 +9,7 @@ import time
 
 import numpy as np
 
-from gateway.geodesy import ned_to_lla
+from gateway.estimation.geodesy import ned_to_lla
 from sim_bus.gnss_receiver import GnssReceiverConfig, simulate_receiver
 from sim_bus.truth import Truth
 

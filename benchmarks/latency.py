@@ -13,11 +13,11 @@ normal priority; N bounded python busy loops without stress-ng) x {normal, rt} (
 normal priority, or under ``chrt -f 50``). Names read ``819-traffic-load-rt``; ``--cases`` takes
 comma-separated shell patterns.
 
-Each case starts ``navgw run --config X`` (as ``python -m gateway.cli``, from the tree this
+Each case starts ``navgw run --config X`` (as ``python -m gateway.cli.main``, from the tree this
 script is in, so that a ``git archive`` copy measures its own code) as a subprocess on
 python-can ``udp_multicast`` (a group of its own routed to ``lo``, a random port per case
 given as ``CAN_CONFIG``, as ``tests/test_service_e2e.py`` does) and plays a simulated run
-into it in real time with :class:`gateway.playback.SyncedPlayback`: the IMU bridge's frames
+into it in real time with :class:`gateway.demo.playback.SyncedPlayback`: the IMU bridge's frames
 on the bus and the NMEA sentences on a pty, so that the service aligns and navigates as on a
 vehicle (the run rests 5 s, then drives; the service navigates from about 9 s). The first
 ``--warmup`` seconds are not measured; then ``--seconds`` are.
@@ -102,9 +102,9 @@ sys.path.insert(0, str(REPO))
 
 from drivers.imu_can import ImuDecoder  # noqa: E402
 from drivers.samples import ImuSample  # noqa: E402
-from gateway.config import load_config  # noqa: E402
-from gateway.playback import SyncedPlayback  # noqa: E402
-from gateway.replay import imu_config  # noqa: E402
+from gateway.config.gateway_config import load_config  # noqa: E402
+from gateway.demo.playback import SyncedPlayback  # noqa: E402
+from gateway.offline.log_replay import imu_config  # noqa: E402
 from sim_bus.scenarios import generate, scenario_from_toml  # noqa: E402
 from sim_bus.truth import Truth  # noqa: E402
 from tests.notify_socket import NotifySocket  # noqa: E402
@@ -117,8 +117,8 @@ TRAFFIC_FPS = 1900.0
 RT_PRIORITY = 50
 HARNESS_PRIORITY = 40  # above the load, below the service's RT_PRIORITY
 OUTPUT_HZ = 50.0  # 127257, SPEC 4 default
-GRID_TOLERANCE = 1e-6  # as gateway.scheduler
-SID_MODULO = 253  # as gateway.scheduler
+GRID_TOLERANCE = 1e-6  # as gateway.isobus.output_scheduler
+SID_MODULO = 253  # as gateway.isobus.output_scheduler
 MATCH_WINDOW = 25  # 127257 frames (0.5 s) over which a slot offset is settled
 TARGET_P99_MS = 1.0
 START_LEAD_S = 0.5  # READY -> first frame
@@ -491,7 +491,7 @@ def write_config(path: Path, run_dir: Path, device: str) -> Path:
 
 def navgw_command() -> list[str]:
     """``navgw`` from the tree this script is in (cwd REPO), whatever the venv has installed."""
-    return [sys.executable, "-m", "gateway.cli"]
+    return [sys.executable, "-m", "gateway.cli.main"]
 
 
 def run_case(case: Case, opts: Options, children: Children) -> dict[str, Any]:

@@ -11,8 +11,8 @@ import time
 import numpy as np
 
 from drivers.samples import FixQuality
-from gateway.n2k_encode import LAYOUTS, LoopStatus, OutputEncoder
-from gateway.solution import Mode, Solution
+from gateway.estimation.solution import Mode, Solution
+from gateway.isobus.n2k_encode import LAYOUTS, LoopStatus, OutputEncoder
 
 REPEATS = 2000
 

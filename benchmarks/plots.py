@@ -5,8 +5,8 @@ Run:  .venv/bin/python benchmarks/plots.py --scenario field --seed 1 --out docs/
 
 ``--paper`` uses the field run with seed 000's known biases added (section 4). Writes
 ``<name>_gyro_bias.png``, ``<name>_accel_bias.png`` and ``<name>_attitude_error.png``. The
-observer and, with ``--engines``, other engines of :data:`gateway.baselines.ENGINES` are
-drawn; the curves come from :mod:`gateway.accuracy`, as the benchmark's numbers do.
+observer and, with ``--engines``, other engines of :data:`gateway.demo.baselines.ENGINES` are
+drawn; the curves come from :mod:`gateway.demo.accuracy`, as the benchmark's numbers do.
 matplotlib is an optional extra (``pip install navgw[plots]``), imported here only.
 """
 
@@ -25,7 +25,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from accuracy import paper_scenario, run_engines, simulate_inputs
 
-from gateway.accuracy import Trace, attitude_error_rad, truth_at
+from gateway.demo.accuracy import Trace, attitude_error_rad, truth_at
 from sim_bus.scenarios import SCENARIOS
 from sim_bus.truth import Truth
 

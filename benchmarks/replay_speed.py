@@ -16,8 +16,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from gateway.config import Engine, GatewayConfig
-from gateway.replay import replay
+from gateway.config.gateway_config import Engine, GatewayConfig
+from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 
 TARGET_X = 50.0

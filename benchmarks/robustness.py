@@ -27,8 +27,8 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gateway.config import Engine, GatewayConfig, VehicleSection
-from gateway.replay import replay
+from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection
+from gateway.offline.log_replay import replay
 from sim_bus.scenarios import generate, scenario_from_toml
 from sim_bus.truth import Truth
 from tests.n2k_check import attitude_errors_deg, decode_log, position_errors_m

@@ -7,7 +7,7 @@ Layers, each usable alone:
   SEQ, converts to SI in the body frame, rebuilds sample times from SEQ and DEC, and counts
   everything that went wrong (:class:`ImuCounters`), warning at a limited rate.
 - :func:`read_bus`: asyncio source over any python-can bus (receive filters set to our ids).
-- :func:`read_log`: the same decoder over a candump ``-L`` log (``sim_bus.canlog``).
+- :func:`read_log`: the same decoder over a candump ``-L`` log (``drivers.logs.candump``).
 
 Sample time: the IMU's own clock is the truth for the period (``dt = 2^DEC / 819.2`` s, exact),
 and frame arrival only bounds it: a frame cannot arrive before its sample was taken, but it may
@@ -68,11 +68,11 @@ from can.typechecking import CanFilter
 
 import dbc
 from dbc.fast_decode import LittleEndianDecoder
-from drivers.canbus import FrameReader
+from drivers.frame_reader import FrameReader
 from drivers.log_limit import LogLimiter
+from drivers.logs.candump import CandumpReader, read_candump
 from drivers.samples import ImuAux, ImuSample
-from gateway.attitude import dcm_from_rpy_array
-from sim_bus.canlog import CandumpReader, read_candump
+from gateway.estimation.attitude import dcm_from_rpy_array
 
 log = logging.getLogger(__name__)
 
@@ -643,7 +643,8 @@ async def read_bus(
     """Yield ImuSample/ImuAux from a python-can bus until it fails (then raise BusError).
 
     Sets the bus's receive filters to the IMU ids, so unrelated traffic is dropped early (in the
-    kernel for socketcan); reading and error handling are :class:`drivers.canbus.FrameReader`'s.
+    kernel for socketcan); reading and error handling are
+    :class:`drivers.frame_reader.FrameReader`'s.
     """
     decoder = decoder or ImuDecoder()
     async with FrameReader(bus, decoder.config.ids.can_filters()) as frames:

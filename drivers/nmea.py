@@ -45,8 +45,8 @@ from os import PathLike
 import pynmea2
 
 from drivers.log_limit import LogLimiter
+from drivers.logs.nmea_log import NmeaLogReader, read_nmea_log
 from drivers.samples import FixQuality, GnssFix
-from sim_bus.nmealog import NmeaLogReader, read_nmea_log
 
 log = logging.getLogger(__name__)
 

@@ -6,6 +6,7 @@ navigation frame NED. Times are host-clock UTC seconds (the clock both logs shar
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from enum import IntEnum
 
@@ -106,6 +107,12 @@ class GnssFix:
             h, v, _ = DEFAULT_GNSS_SIGMAS[int(self.quality)]
             return (h, h, v)
         return None
+
+    @property
+    def horizontal_sigma_m(self) -> float:
+        """Horizontal position 1-sigma (root sum of north and east), 0 when unknown."""
+        sig = self.position_sigma_m
+        return math.hypot(sig[0], sig[1]) if sig is not None else 0.0
 
     @property
     def vel_ne_mps(self) -> tuple[float, float] | None:

@@ -23,7 +23,7 @@ from collections.abc import Iterable, Sequence
 
 import can
 
-from sim_bus.canlog import read_candump
+from drivers.logs.candump import read_candump
 
 log = logging.getLogger(__name__)
 

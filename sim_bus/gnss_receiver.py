@@ -38,7 +38,7 @@ import numpy.typing as npt
 
 from drivers.nmea import nmea_checksum
 from drivers.samples import FixQuality
-from gateway.geodesy import ned_to_lla
+from gateway.estimation.geodesy import ned_to_lla
 from sim_bus.truth import Truth
 
 Array = npt.NDArray[np.float64]

@@ -32,8 +32,8 @@ from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
-from sim_bus.closing import Closing
-from sim_bus.nmealog import read_nmea_log
+from drivers.logs.closing import Closing
+from drivers.logs.nmea_log import read_nmea_log
 
 POLL_S = 0.02  # how often a waiting player looks at the stop request and the port
 

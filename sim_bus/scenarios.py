@@ -22,13 +22,20 @@ from typing import Any
 
 import numpy as np
 
+from drivers.logs.candump import write_candump
+from drivers.logs.nmea_log import read_nmea_log, write_nmea_log
 from drivers.nmea import read_fixes_from_log
 from drivers.samples import FixQuality
-from gateway.config import GatewayConfig, GnssSection, ImuSection, VehicleSection, config_toml
-from gateway.config_schema import ConfigError, from_table
-from gateway.epoch_clock import DELAY_WINDOW
+from gateway.config.config_schema import ConfigError, from_table
+from gateway.config.gateway_config import (
+    GatewayConfig,
+    GnssSection,
+    ImuSection,
+    VehicleSection,
+    config_toml,
+)
+from gateway.estimation.epoch_clock import DELAY_WINDOW
 from sim_bus.adis16334 import Adis16334Config, Adis16334Output, simulate
-from sim_bus.canlog import write_candump
 from sim_bus.gnss_receiver import (
     FixInterval,
     GnssReceiverConfig,
@@ -36,7 +43,6 @@ from sim_bus.gnss_receiver import (
     simulate_receiver,
 )
 from sim_bus.imu_frames import BridgeConfig, frames
-from sim_bus.nmealog import read_nmea_log, write_nmea_log
 from sim_bus.truth import Truth
 from sim_bus.vehicle import VEHICLE_PRESETS, VehicleConfig, simulate_vehicle
 

@@ -25,8 +25,8 @@ from typing import Literal
 import numpy as np
 import numpy.typing as npt
 
-from gateway.attitude import dcm_from_rpy_array
-from gateway.geodesy import ned_to_lla
+from gateway.estimation.attitude import dcm_from_rpy_array
+from gateway.estimation.geodesy import ned_to_lla
 from sim_bus.terrain import Terrain, random_bumps
 from sim_bus.truth import Truth
 

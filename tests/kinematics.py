@@ -23,9 +23,9 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.samples import FixQuality, GnssFix, ImuSample
-from gateway.estimator_config import GRAVITY_MPS2
-from gateway.geodesy import ned_to_lla
-from gateway.solution import Estimator
+from gateway.estimation.geodesy import ned_to_lla
+from gateway.estimation.observer.observer_config import GRAVITY_MPS2
+from gateway.estimation.solution import Estimator
 
 Array = npt.NDArray[np.float64]
 ORIGIN_LLA = np.array([52.2, 10.5, 80.0])

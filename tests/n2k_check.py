@@ -16,7 +16,7 @@ import numpy as np
 import numpy.typing as npt
 from nmea2000 import NMEA2000Decoder
 
-from sim_bus.canlog import read_candump
+from drivers.logs.candump import read_candump
 from sim_bus.truth import Truth
 
 
@@ -61,7 +61,7 @@ def position_errors_m(
     messages: list[Decoded], truth: Truth, after_s: float
 ) -> npt.NDArray[np.float64]:
     """Horizontal errors (m) of 129025 reference-point positions later than ``after_s``."""
-    from gateway.geodesy import lla_to_ned
+    from gateway.estimation.geodesy import lla_to_ned
 
     rows = [m for m in messages if m.id == "positionRapidUpdate" and m.t - truth.t[0] > after_s]
     t = np.array([m.t for m in rows])
@@ -148,7 +148,7 @@ def implausible_frames(
     :func:`status_modes`), a frame within 0.1 s of a NAVGW_STATUS saying DEGRADED or FAULT is
     held to range and finiteness only: SPEC 4 lets a value be off while STATUS says so.
     """
-    from gateway.geodesy import lla_to_ned
+    from gateway.estimation.geodesy import lla_to_ned
 
     t_truth = truth.t
     yaw_rate = np.gradient(np.unwrap(truth.rpy_rad[:, 2]), t_truth)

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
-from gateway.accuracy import (
+from gateway.demo.accuracy import (
     Trace,
     attitude_error_rad,
     evaluate,
@@ -19,7 +19,7 @@ from gateway.accuracy import (
     rms,
     wrap_pi,
 )
-from gateway.geodesy import ned_to_lla
+from gateway.estimation.geodesy import ned_to_lla
 from sim_bus.truth import Truth
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))

@@ -2,7 +2,7 @@
 
 The buses echo what we send (``receive_own_messages``, as udp_multicast and socketcan's
 loopback do); as in the live service, received frames go through
-:class:`~gateway.canbus.EchoFilter` before the claimer. Echoes are marked as ours by the
+:class:`~gateway.service.bus_links.EchoFilter` before the claimer. Echoes are marked as ours by the
 virtual bus (``is_rx`` false) or, like udp_multicast's, look received (``marks_own=False``).
 """
 
@@ -17,14 +17,14 @@ import pytest
 from nmea2000 import _canboat
 
 from drivers.samples import GnssFix, ImuSample
-from gateway.address_claim import CONFLICT_HOLD_S, AddressClaimer, ClaimState, Name
-from gateway.canbus import EchoFilter, claim_filters
-from gateway.config import GatewayConfig
-from gateway.fusion import FusionCore
-from gateway.j1939 import FrameId, IndustryGroup, Pgn, can_id
-from gateway.n2k_encode import LoopStatus
-from gateway.scheduler import OutputScheduler
-from gateway.solution import Mode, Solution
+from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.solution import Mode, Solution
+from gateway.fusion.fusion_core import FusionCore
+from gateway.isobus.address_claim import CONFLICT_HOLD_S, AddressClaimer, ClaimState, Name
+from gateway.isobus.j1939 import FrameId, IndustryGroup, Pgn, can_id
+from gateway.isobus.n2k_encode import LoopStatus
+from gateway.isobus.output_scheduler import OutputScheduler
+from gateway.service.bus_links import EchoFilter, claim_filters
 from tests.kinematics import T0_S, Motion, Segment, gnss_stream, imu_stream
 
 NAME = Name(identity_number=123456, manufacturer_code=2046, ecu_instance=1, function_instance=2)
@@ -290,7 +290,7 @@ def test_a_reserved_address_is_never_taken_and_every_move_is_logged(
     try:
         node.start()
         node.run(0.6)
-        with caplog.at_level(logging.WARNING, logger="gateway.address_claim"):
+        with caplog.at_level(logging.WARNING, logger="gateway.isobus.address_claim"):
             raw.bus.send(claim_frame(0x1C, OURS - 1))
             node.run(0.4)
         assert node.claimer.claimed and node.claimer.address == 0x81
@@ -329,7 +329,7 @@ def test_a_claim_with_our_name_is_a_clone_and_we_keep_our_address(
     node, raw = buses
     node.start()
     node.run(0.6)
-    with caplog.at_level(logging.WARNING, logger="gateway.address_claim"):
+    with caplog.at_level(logging.WARNING, logger="gateway.isobus.address_claim"):
         raw.bus.send(claim_frame(source, OURS))
         node.run(0.1)
     conflict_at = node.now - 0.1
@@ -456,7 +456,7 @@ def test_a_clone_claiming_our_name_makes_status_degraded_for_the_hold_time(
     gw, raw = gateway
     gw.run(CONFLICT_AT_S)
     ours = gw.core.claimer.name
-    with caplog.at_level(logging.WARNING, logger="gateway.address_claim"):
+    with caplog.at_level(logging.WARNING, logger="gateway.isobus.address_claim"):
         raw.bus.send(claim_frame(0x40, ours))  # a second unit flashed with our identity
         gw.run(CONFLICT_AT_S + 2.0)
         raw.bus.send(claim_frame(0x40, ours))  # it answers a request: within 10 s, not logged
@@ -481,7 +481,7 @@ def test_frames_sent_as_us_by_another_node_make_status_degraded(
     raw.bus.send(frame_from(pgn, 0x40, bytes(range(8))))  # another node's own: not ours
     gw.run(CONFLICT_AT_S)
     assert gw.core.claimer.spoofed_frames == 0
-    with caplog.at_level(logging.WARNING, logger="gateway.address_claim"):
+    with caplog.at_level(logging.WARNING, logger="gateway.isobus.address_claim"):
         for _ in range(3):
             raw.bus.send(frame_from(pgn, 0x1C, bytes(range(8))))
             gw.run(gw.core.solution().t - T0_S + 0.5)

@@ -5,7 +5,7 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 
-from gateway.attitude import (
+from gateway.estimation.attitude import (
     dcm_from_rpy,
     dcm_mul,
     exp_so3,

@@ -18,13 +18,13 @@ import numpy as np
 import pytest
 
 from drivers.samples import GnssFix, ImuSample
-from gateway.ekf_config import EkfConfig
-from gateway.engine_ekf import EkfEngine
-from gateway.engine_observer import ObserverEngine
-from gateway.epoch_clock import EpochTime
-from gateway.estimator_config import ObserverConfig
-from gateway.geodesy import lla_to_ned
-from gateway.solution import IMU_GAP_DEGRADED_S, Estimator, Mode
+from gateway.estimation.ekf.ekf_config import EkfConfig
+from gateway.estimation.ekf.ekf_engine import EkfEngine
+from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.observer.observer_config import ObserverConfig
+from gateway.estimation.observer.observer_engine import ObserverEngine
+from gateway.estimation.solution import IMU_GAP_DEGRADED_S, Estimator, Mode
 from tests.kinematics import (
     ORIGIN_LLA,
     Motion,

@@ -9,8 +9,8 @@ from pathlib import Path
 import can
 import pytest
 
-from sim_bus import canlog
-from sim_bus.canlog import CandumpReader, format_candump_line, read_candump, write_candump
+from drivers.logs import candump as canlog
+from drivers.logs.candump import CandumpReader, format_candump_line, read_candump, write_candump
 
 FIELDS = (
     "timestamp",

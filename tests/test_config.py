@@ -8,8 +8,9 @@ from pathlib import Path
 
 import pytest
 
-from gateway.cli import main
-from gateway.config import (
+from gateway.cli.main import main
+from gateway.config.config_schema import ConfigError, tomllib
+from gateway.config.gateway_config import (
     ENGINE_SECTIONS,
     Engine,
     GatewayConfig,
@@ -17,8 +18,7 @@ from gateway.config import (
     example_toml,
     load_config,
 )
-from gateway.config_schema import ConfigError, tomllib
-from gateway.j1939 import Pgn
+from gateway.isobus.j1939 import Pgn
 
 
 def test_spec5_vehicle_keys_reach_the_engine_config() -> None:

@@ -5,7 +5,7 @@ from enum import Enum
 
 import pytest
 
-from gateway.config_schema import ConfigError, from_table, in_range, source_comments
+from gateway.config.config_schema import ConfigError, from_table, in_range, source_comments
 
 
 class Engine(Enum):

@@ -31,7 +31,7 @@ pytestmark = pytest.mark.live
 def test_short_demo_writes_its_files_and_sane_numbers(tmp_path: Path) -> None:
     out = tmp_path / "demo"
     result = subprocess.run(
-        [sys.executable, "-m", "gateway.cli", "demo", "--scenario", "short", "--minutes",
+        [sys.executable, "-m", "gateway.cli.main", "demo", "--scenario", "short", "--minutes",
          str(MINUTES), "--speed", str(SPEED), "--out", str(out)],
         cwd=REPO, capture_output=True, text=True, check=False, timeout=120,
     )  # fmt: skip

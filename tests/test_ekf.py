@@ -8,8 +8,8 @@ from collections.abc import Callable
 import numpy as np
 from numpy.testing import assert_allclose
 
-from gateway.attitude import dcm_from_rpy, exp_so3
-from gateway.ekf import (
+from gateway.estimation.attitude import dcm_from_rpy, exp_so3
+from gateway.estimation.ekf.error_state import (
     ATT,
     BG,
     N_STATES,

@@ -20,13 +20,13 @@ from scipy.stats import chi2
 from drivers.imu_can import read_log
 from drivers.nmea import read_fixes_from_log
 from drivers.samples import FixQuality, GnssFix, ImuSample
-from gateway.attitude import dcm_from_rpy
-from gateway.ekf import attitude_error
-from gateway.ekf_config import EkfConfig
-from gateway.engine_ekf import EkfEngine
-from gateway.epoch_clock import EpochTime
-from gateway.geodesy import lla_to_ned
-from gateway.solution import Mode, Solution
+from gateway.estimation.attitude import dcm_from_rpy
+from gateway.estimation.ekf.ekf_config import EkfConfig
+from gateway.estimation.ekf.ekf_engine import EkfEngine
+from gateway.estimation.ekf.error_state import attitude_error
+from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.solution import Mode, Solution
 from sim_bus.gnss_receiver import FixInterval
 from sim_bus.scenarios import SCENARIOS, Scenario, generate
 from sim_bus.truth import Truth

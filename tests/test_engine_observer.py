@@ -8,11 +8,11 @@ import numpy as np
 import pytest
 
 from drivers.samples import FixQuality, GnssFix
-from gateway.engine_observer import ObserverEngine
-from gateway.epoch_clock import EpochTime
-from gateway.estimator_config import ObserverConfig
-from gateway.geodesy import lla_to_ned
-from gateway.solution import Mode, Solution
+from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.observer.observer_config import ObserverConfig
+from gateway.estimation.observer.observer_engine import ObserverEngine
+from gateway.estimation.solution import Mode, Solution
 from tests.kinematics import (
     ORIGIN_LLA,
     Motion,

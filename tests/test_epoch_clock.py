@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from drivers.samples import FixQuality, GnssFix
-from gateway.epoch_clock import DELAY_WINDOW, EpochClock, EpochTime
+from gateway.estimation.epoch_clock import DELAY_WINDOW, EpochClock, EpochTime
 
 T_UTC0 = 1_700_000_000.0
 

@@ -3,7 +3,7 @@
 import pytest
 from nmea2000 import _canboat
 
-from gateway.fast_packet import MAX_PAYLOAD_BYTES, FastPacketFragmenter, frame_count
+from gateway.isobus.fast_packet import MAX_PAYLOAD_BYTES, FastPacketFragmenter, frame_count
 
 PGN = 129029
 

@@ -20,12 +20,12 @@ from hypothesis import strategies as st
 
 from drivers.errors import InputError
 from drivers.imu_can import ImuCanIds, ImuDecoder
+from drivers.logs.candump import parse_candump_line
+from drivers.logs.nmea_log import parse_nmea_log_line
 from drivers.nmea import NmeaDecoder, nmea_checksum
 from drivers.samples import GnssFix, ImuSample
-from gateway.config import config_from_table
-from gateway.config_schema import ConfigError
-from sim_bus.canlog import parse_candump_line
-from sim_bus.nmealog import parse_nmea_log_line
+from gateway.config.config_schema import ConfigError
+from gateway.config.gateway_config import config_from_table
 
 EXAMPLES = int(os.environ.get("NAVGW_FUZZ_EXAMPLES", "300"))
 FUZZ = settings(

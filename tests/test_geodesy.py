@@ -3,7 +3,7 @@
 import numpy as np
 from numpy.testing import assert_allclose
 
-from gateway.geodesy import (
+from gateway.estimation.geodesy import (
     A_M,
     E2,
     LocalFrame,

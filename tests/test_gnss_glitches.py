@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from drivers.samples import GnssFix
-from gateway.config import Engine
-from gateway.engine_ekf import EkfEngine
-from gateway.engine_observer import ObserverEngine
-from gateway.geodesy import lla_to_ned
-from gateway.solution import Mode
+from gateway.config.gateway_config import Engine
+from gateway.estimation.ekf.ekf_engine import EkfEngine
+from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.observer.observer_engine import ObserverEngine
+from gateway.estimation.solution import Mode
 from tests.kinematics import ORIGIN_LLA, T0_S, gnss_stream, imu_stream, motion_time, state_at
 from tests.n2k_check import decode_log
 from tests.test_outages import LEVER, MOTION, run, status

@@ -9,7 +9,7 @@ import pynmea2
 import pytest
 
 from drivers.samples import FixQuality
-from gateway.geodesy import lla_to_ned, ned_to_lla
+from gateway.estimation.geodesy import lla_to_ned, ned_to_lla
 from sim_bus.gnss_receiver import (
     KNOT_MPS,
     FixInterval,

@@ -14,10 +14,10 @@ from pathlib import Path
 import pytest
 
 from drivers.gnss_serial import GnssSerialReader
+from drivers.logs.nmea_log import read_nmea_log
 from drivers.nmea import nmea_checksum, read_fixes_from_log
 from drivers.samples import FixQuality, GnssFix
 from sim_bus.nmea_player import Detached, NmeaPlayer
-from sim_bus.nmealog import read_nmea_log
 
 DAY = float(calendar.timegm((2024, 5, 1, 0, 0, 0)))
 

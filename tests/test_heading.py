@@ -4,10 +4,10 @@ import math
 
 from numpy.testing import assert_allclose
 
-from gateway.engine_observer import ObserverEngine
-from gateway.estimator_config import ObserverConfig
-from gateway.heading import GyroZBiasKf
-from gateway.solution import Solution
+from gateway.estimation.observer.heading_channel import GyroZBiasKf
+from gateway.estimation.observer.observer_config import ObserverConfig
+from gateway.estimation.observer.observer_engine import ObserverEngine
+from gateway.estimation.solution import Solution
 from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, motion_time, run, state_at
 
 START = [Segment(3.0), Segment(3.0, accel_mps2=1.0)]  # still, then up to 3 m/s

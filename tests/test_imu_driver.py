@@ -15,6 +15,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from drivers.imu_can import ImuCanConfig, ImuCanIds, ImuDecoder, read_bus, read_log
+from drivers.logs.candump import read_candump, write_candump
 from drivers.samples import ImuAux, ImuSample
 from sim_bus.adis16334 import (
     ACCEL_LSB_MPS2,
@@ -25,7 +26,6 @@ from sim_bus.adis16334 import (
     simulate,
 )
 from sim_bus.can_player import play
-from sim_bus.canlog import read_candump, write_candump
 from sim_bus.imu_frames import frames
 
 G = 9.80665

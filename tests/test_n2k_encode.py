@@ -10,9 +10,9 @@ from hypothesis import strategies as st
 from nmea2000 import NMEA2000Decoder, backend
 
 from drivers.samples import FixQuality
-from gateway.j1939 import Pgn
-from gateway.n2k_encode import GNSS_METHOD_OF_FIX, LAYOUTS, LoopStatus, OutputEncoder
-from gateway.solution import Convergence, Mode, Solution
+from gateway.estimation.solution import Convergence, Mode, Solution
+from gateway.isobus.j1939 import Pgn
+from gateway.isobus.n2k_encode import GNSS_METHOD_OF_FIX, LAYOUTS, LoopStatus, OutputEncoder
 
 T = 1_700_000_000.1234  # 2023-11-14 22:13:20.1234 UTC
 FULL = Solution(

@@ -11,8 +11,8 @@ from pathlib import Path
 import pytest
 import serial
 
+from drivers.logs.nmea_log import write_nmea_log
 from sim_bus.nmea_player import Detached, NmeaPlayer, play_nmea_lines
-from sim_bus.nmealog import write_nmea_log
 
 T0 = 1_700_000_000.0
 

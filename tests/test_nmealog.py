@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from drivers.errors import InputError
-from sim_bus.nmealog import (
+from drivers.logs.nmea_log import (
     format_nmea_log_line,
     parse_nmea_log_line,
     read_nmea_log,
@@ -74,7 +74,7 @@ def test_reader_skips_and_reports_bad_lines_without_aborting(
         + b"\n"
         + f"{RMC}\r\n".encode()
     )
-    with caplog.at_level(logging.WARNING, logger="sim_bus.nmealog"):
+    with caplog.at_level(logging.WARNING, logger="drivers.logs.nmea_log"):
         reader = read_nmea_log(path)
         got = list(reader)
     assert got == [(1700000000.1, GGA), (None, "\ufffdb\x01\x07\ufffd\ufffd binary"), (None, RMC)]
@@ -90,7 +90,7 @@ def test_reports_are_rate_limited_but_every_bad_line_counted(
     caplog: pytest.LogCaptureFixture,
 ) -> None:
     text = io.StringIO("(bad) x\n" * 25 + f"{GGA}\n")
-    with caplog.at_level(logging.WARNING, logger="sim_bus.nmealog"):
+    with caplog.at_level(logging.WARNING, logger="drivers.logs.nmea_log"):
         reader = read_nmea_log(text, max_reports=3)
         assert list(reader) == [(None, GGA)]
     assert reader.bad_lines == 25

@@ -5,10 +5,10 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 
-from gateway.attitude import dcm_from_rpy, rpy_from_dcm
-from gateway.engine_observer import ObserverEngine
-from gateway.estimator_config import GRAVITY_MPS2, ObserverConfig
-from gateway.observer import TereshkovObserver
+from gateway.estimation.attitude import dcm_from_rpy, rpy_from_dcm
+from gateway.estimation.observer.observer_config import GRAVITY_MPS2, ObserverConfig
+from gateway.estimation.observer.observer_engine import ObserverEngine
+from gateway.estimation.observer.tereshkov import TereshkovObserver
 from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, run
 
 G = GRAVITY_MPS2

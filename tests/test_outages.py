@@ -13,13 +13,13 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivers.logs.candump import CandumpWriter, read_candump
 from drivers.samples import FixQuality, GnssFix, ImuSample
-from gateway.config import Engine, GatewayConfig, GnssSection, VehicleSection
-from gateway.epoch_clock import EpochTime
-from gateway.fusion import RESTART_GAP_S, FusionCore
-from gateway.geodesy import lla_to_ned
-from gateway.solution import Mode
-from sim_bus.canlog import CandumpWriter, read_candump
+from gateway.config.gateway_config import Engine, GatewayConfig, GnssSection, VehicleSection
+from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.solution import Mode
+from gateway.fusion.fusion_core import RESTART_GAP_S, FusionCore
 from tests.kinematics import (
     ORIGIN_LLA,
     T0_S,

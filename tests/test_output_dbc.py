@@ -6,10 +6,10 @@ import sys
 import pytest
 
 import dbc
-from gateway.j1939 import FrameId, Pgn
-from gateway.n2k_encode import LAYOUTS, LoopStatus, OutputEncoder
-from gateway.scheduler import DEFAULT_RATES_HZ, OutputScheduler
-from gateway.solution import Mode, Solution
+from gateway.estimation.solution import Mode, Solution
+from gateway.isobus.j1939 import FrameId, Pgn
+from gateway.isobus.n2k_encode import LAYOUTS, LoopStatus, OutputEncoder
+from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, OutputScheduler
 
 DB = dbc.load(dbc.OUTPUT_DBC)
 

@@ -14,12 +14,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivers.logs.candump import CandumpWriter, read_candump
 from drivers.samples import FixQuality, GnssFix, ImuSample
-from gateway.config import GatewayConfig
-from gateway.fusion import FusionCore
-from gateway.output_guard import GuardLimits, OutputGuard, Withheld
-from gateway.solution import Mode, Solution
-from sim_bus.canlog import CandumpWriter, read_candump
+from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.solution import Mode, Solution
+from gateway.fusion.fusion_core import FusionCore
+from gateway.fusion.output_guard import GuardLimits, OutputGuard, Withheld
 from tests.n2k_check import decode_log
 
 T0 = 1_700_000_000.0
@@ -97,7 +97,7 @@ def test_a_misbehaving_engine_never_reaches_the_bus(
     tmp_path: Path, caplog: pytest.LogCaptureFixture
 ) -> None:
     log = tmp_path / "out.log"
-    with caplog.at_level(logging.WARNING, logger="gateway.output_guard"):
+    with caplog.at_level(logging.WARNING, logger="gateway.fusion.output_guard"):
         core = run_core(log, 15.0)
     decoded = decode_log(log)
     positions = [m for m in decoded if m.id == "positionRapidUpdate"]
@@ -141,7 +141,7 @@ def test_a_misbehaving_engine_never_reaches_the_bus(
     counts = core.guard.counts
     assert counts[Withheld.POSITION] > 0 and counts[Withheld.ATTITUDE] > 0
     # logged at a limited rate: one line per 10 s of solution time at most
-    lines = [r for r in caplog.records if r.name == "gateway.output_guard"]
+    lines = [r for r in caplog.records if r.name == "gateway.fusion.output_guard"]
     assert 1 <= len(lines) <= 2
     assert "expected" in lines[0].getMessage()
 

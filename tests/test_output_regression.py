@@ -20,8 +20,8 @@ from pathlib import Path
 
 import pytest
 
-from gateway.config import Engine, load_config
-from gateway.replay import replay
+from gateway.config.gateway_config import Engine, load_config
+from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 
 REFERENCE = Path(__file__).parent / "data" / "regression" / "replay.json"

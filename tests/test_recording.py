@@ -9,12 +9,12 @@ from pathlib import Path
 
 import pytest
 
+from drivers.logs.candump import read_candump
+from drivers.logs.nmea_log import read_nmea_log
 from drivers.nmea import NmeaDecoder
-from gateway.config import RecordingSection
-from gateway.recording import CAN_SUFFIX, NMEA_SUFFIX, InputRecorder
-from gateway.replay import replay
-from sim_bus.canlog import read_candump
-from sim_bus.nmealog import read_nmea_log
+from gateway.config.gateway_config import RecordingSection
+from gateway.offline.log_replay import replay
+from gateway.service.input_recording import CAN_SUFFIX, NMEA_SUFFIX, InputRecorder
 from sim_bus.scenarios import SCENARIOS, generate
 
 REPO = Path(__file__).resolve().parents[1]
@@ -64,7 +64,7 @@ def test_a_recorded_pair_replays_like_the_original(run_dir: Path, tmp_path: Path
     can_log, nmea_log = (tmp_path / "rec" / (stem + s) for s in (CAN_SUFFIX, NMEA_SUFFIX))
     assert not any(line.endswith((" R\n", " T\n")) for line in can_log.open())
     result = subprocess.run(
-        [sys.executable, "-m", "gateway.cli", "replay", "--can", str(can_log), "--nmea",
+        [sys.executable, "-m", "gateway.cli.main", "replay", "--can", str(can_log), "--nmea",
          str(nmea_log), "--out", str(tmp_path / "out.log")],
         cwd=REPO, capture_output=True, text=True, check=False,
     )  # fmt: skip

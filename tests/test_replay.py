@@ -10,12 +10,12 @@ import can
 import numpy as np
 import pytest
 
-from gateway.config import load_config
-from gateway.fusion import FusionCore
-from gateway.j1939 import Pgn, can_id
-from gateway.replay import replay
-from gateway.solution import Mode
-from sim_bus.canlog import CandumpWriter, read_candump
+from drivers.logs.candump import CandumpWriter, read_candump
+from gateway.config.gateway_config import load_config
+from gateway.estimation.solution import Mode
+from gateway.fusion.fusion_core import FusionCore
+from gateway.isobus.j1939 import Pgn, can_id
+from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
 from tests.n2k_check import attitude_errors_deg, decode_log, position_errors_m
@@ -120,7 +120,10 @@ def test_other_nodes_claims_and_requests_replay_into_our_answers(
 
 def navgw(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "gateway.cli", *args], capture_output=True, text=True, check=False
+        [sys.executable, "-m", "gateway.cli.main", *args],
+        capture_output=True,
+        text=True,
+        check=False,
     )
 
 

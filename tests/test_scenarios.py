@@ -12,8 +12,8 @@ import pytest
 from drivers.imu_can import ImuDecoder, read_log
 from drivers.nmea import read_fixes_from_log
 from drivers.samples import FixQuality, ImuSample
-from gateway.config_schema import ConfigError
-from gateway.geodesy import lla_to_ned
+from gateway.config.config_schema import ConfigError
+from gateway.estimation.geodesy import lla_to_ned
 from sim_bus.scenarios import SCENARIOS, generate, scenario_from_toml
 from sim_bus.truth import Truth
 
@@ -110,7 +110,7 @@ def test_cli_writes_files_and_rejects_unknown_scenario(tmp_path: Path) -> None:
         [
             sys.executable,
             "-m",
-            "gateway.cli",
+            "gateway.cli.main",
             "sim",
             "--config",
             str(cfg),
@@ -125,7 +125,7 @@ def test_cli_writes_files_and_rejects_unknown_scenario(tmp_path: Path) -> None:
     names = {p.name for p in (tmp_path / "o").iterdir()}
     assert names == {"imu.log", "gnss.nmea", "truth.npz", "navgw.toml"}
     bad = subprocess.run(
-        [sys.executable, "-m", "gateway.cli", "sim", "moon"],
+        [sys.executable, "-m", "gateway.cli.main", "sim", "moon"],
         capture_output=True,
         text=True,
         check=False,

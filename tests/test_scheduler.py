@@ -5,11 +5,11 @@ from collections import Counter
 import can
 import pytest
 
-from gateway.bus_load import bus_load, frame_bits, frames_per_second
-from gateway.j1939 import FrameId, Pgn
-from gateway.n2k_encode import LAYOUTS, LoopStatus, OutputEncoder
-from gateway.scheduler import DEFAULT_RATES_HZ, SID_PGNS, OutputScheduler
-from gateway.solution import Mode, Solution
+from gateway.estimation.solution import Mode, Solution
+from gateway.isobus.bus_load import bus_load, frame_bits, frames_per_second
+from gateway.isobus.j1939 import FrameId, Pgn
+from gateway.isobus.n2k_encode import LAYOUTS, LoopStatus, OutputEncoder
+from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, SID_PGNS, OutputScheduler
 
 IMU_RATE_HZ = 204.8
 T0 = 1_700_000_000.0

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import pytest
 
-from gateway.sdnotify import SdNotifier
+from gateway.service.sdnotify import SdNotifier
 from tests.notify_socket import NotifySocket
 
 REPO = Path(__file__).resolve().parents[1]
@@ -29,7 +29,7 @@ def notify(tmp_path: Path) -> Iterator[NotifySocket]:
 def start_service(config: Path, notify: NotifySocket, **env: str) -> subprocess.Popen[str]:
     environ = {**os.environ, "NOTIFY_SOCKET": str(notify.path), "JOURNAL_STREAM": "8:1", **env}
     return subprocess.Popen(
-        [sys.executable, "-m", "gateway.cli", "run", "--config", str(config)],
+        [sys.executable, "-m", "gateway.cli.main", "run", "--config", str(config)],
         cwd=REPO,
         env=environ,
         stderr=subprocess.PIPE,

@@ -15,15 +15,15 @@ from pathlib import Path
 import can
 import pytest
 
-from drivers.canbus import FrameReader
 from drivers.errors import BusError
+from drivers.frame_reader import FrameReader
 from drivers.samples import ImuAux
-from gateway.canbus import BusPlan, EchoFilter, claim_filters, is_bus_down
-from gateway.cli import build_parser, main
-from gateway.config import GatewayConfig, ImuSection, example_toml
-from gateway.config_schema import ConfigError
-from gateway.j1939 import Pgn, can_id
-from gateway.service import GatewayService, Inbox
+from gateway.cli.main import build_parser, main
+from gateway.config.config_schema import ConfigError
+from gateway.config.gateway_config import GatewayConfig, ImuSection, example_toml
+from gateway.isobus.j1939 import Pgn, can_id
+from gateway.service.bus_links import BusPlan, EchoFilter, claim_filters, is_bus_down
+from gateway.service.live_loop import GatewayService, Inbox
 
 REPO = Path(__file__).resolve().parents[1]
 _channels = itertools.count()
@@ -243,7 +243,7 @@ def test_service_on_an_echoing_bus_tells_its_echo_from_a_clone(multicast_port: i
 
 def navgw(*args: str) -> subprocess.CompletedProcess[str]:
     return subprocess.run(
-        [sys.executable, "-m", "gateway.cli", *args],
+        [sys.executable, "-m", "gateway.cli.main", *args],
         capture_output=True,
         text=True,
         check=False,

@@ -28,13 +28,13 @@ import numpy as np
 import numpy.typing as npt
 import pytest
 
-from gateway.config import RecordingSection
-from gateway.demo import OutputLog, demo_config
-from gateway.playback import SyncedPlayback
-from gateway.replay import replay
-from gateway.service import GatewayService
-from gateway.solution import IMU_GAP_DEGRADED_S, MAX_IMU_STEP_S, Mode
-from sim_bus.canlog import CandumpWriter, read_candump
+from drivers.logs.candump import CandumpWriter, read_candump
+from gateway.config.gateway_config import RecordingSection
+from gateway.demo.demo_run import OutputLog, demo_config
+from gateway.demo.playback import SyncedPlayback
+from gateway.estimation.solution import IMU_GAP_DEGRADED_S, MAX_IMU_STEP_S, Mode
+from gateway.offline.log_replay import replay
+from gateway.service.live_loop import GatewayService
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
 from tests.n2k_check import (
@@ -221,7 +221,7 @@ def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Pa
     (stem,) = {p.name.split(".")[0] for p in (tmp_path / "rec").iterdir()}
     rec_can, rec_nmea = (tmp_path / "rec" / (stem + s) for s in (".imu.log", ".gnss.nmea"))
     result = subprocess.run(
-        [sys.executable, "-m", "gateway.cli", "replay", "--can", str(rec_can), "--nmea",
+        [sys.executable, "-m", "gateway.cli.main", "replay", "--can", str(rec_can), "--nmea",
          str(rec_nmea), "--out", str(tmp_path / "rec-out.log")],
         cwd=REPO, capture_output=True, text=True, check=False,
     )  # fmt: skip
@@ -292,7 +292,7 @@ def test_subprocess_on_udp_multicast_in_real_time(
             "CAN_CONFIG": json.dumps({"port": port}),
         }
         proc = subprocess.Popen(
-            [sys.executable, "-m", "gateway.cli", "run", "--config", str(config)],
+            [sys.executable, "-m", "gateway.cli.main", "run", "--config", str(config)],
             cwd=REPO, env=env, stderr=subprocess.PIPE, text=True,
         )  # fmt: skip
         try:

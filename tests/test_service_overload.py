@@ -19,11 +19,11 @@ import can
 import numpy as np
 import pytest
 
+from drivers.logs.candump import CandumpWriter
 from drivers.samples import GnssFix, ImuSample
-from gateway.demo import OutputLog, demo_config
-from gateway.playback import SyncedPlayback
-from gateway.service import GatewayService
-from sim_bus.canlog import CandumpWriter
+from gateway.demo.demo_run import OutputLog, demo_config
+from gateway.demo.playback import SyncedPlayback
+from gateway.service.live_loop import GatewayService
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
 from tests.n2k_check import decode_log, implausible_frames

@@ -8,10 +8,10 @@ from pathlib import Path
 
 import pytest
 
-from gateway.cli import main
-from gateway.config import load_config
-from gateway.demo import DemoSummary
-from gateway.solution import Mode
+from gateway.cli.main import main
+from gateway.config.gateway_config import load_config
+from gateway.demo.demo_run import DemoSummary
+from gateway.estimation.solution import Mode
 
 #: The shortest run: one pass of the short scenario, on a vehicle of its own geometry.
 SCENARIO = """base = "short"

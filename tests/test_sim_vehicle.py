@@ -10,7 +10,7 @@ import pytest
 from numpy.testing import assert_allclose
 from scipy.spatial.transform import Rotation
 
-from gateway.geodesy import lla_to_ned
+from gateway.estimation.geodesy import lla_to_ned
 from sim_bus.truth import Truth
 from sim_bus.vehicle import VEHICLE_PRESETS, simulate_vehicle
 

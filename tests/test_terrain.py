@@ -5,8 +5,8 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 
-from gateway.attitude import dcm_from_rpy
-from gateway.terrain import (
+from gateway.estimation.attitude import dcm_from_rpy
+from gateway.estimation.lever_arm import (
     lever_arm_position_ned,
     lever_arm_velocity_ned,
     reference_from_antenna,

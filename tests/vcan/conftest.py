@@ -17,7 +17,7 @@ from pathlib import Path
 import can
 import pytest
 
-from gateway.replay import replay
+from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 
 #: Set by .ci/run: a directory that ``python -m tests.vcan.conftest DIR`` filled on the host,

@@ -12,7 +12,7 @@ from typing import IO
 import pytest
 
 import dbc
-from sim_bus.canlog import read_candump
+from drivers.logs.candump import read_candump
 from tests.n2k_check import decode_log
 from tests.vcan.conftest import candump_argv
 

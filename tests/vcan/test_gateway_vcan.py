@@ -23,12 +23,12 @@ import can
 import numpy as np
 import pytest
 
-from gateway.playback import paced
-from gateway.solution import MAX_IMU_STEP_S
-from gateway.timebase import TimeBase
-from sim_bus.canlog import CandumpWriter, read_candump
+from drivers.logs.candump import CandumpWriter, read_candump
+from drivers.logs.nmea_log import read_nmea_log
+from gateway.demo.playback import paced
+from gateway.estimation.solution import MAX_IMU_STEP_S
+from gateway.service.timebase import TimeBase
 from sim_bus.nmea_player import NmeaPlayer
-from sim_bus.nmealog import read_nmea_log
 from sim_bus.truth import Truth
 from tests.n2k_check import (
     Plausible,
@@ -121,7 +121,7 @@ def session(vcan0: str, sim_run: Path, tmp_path_factory: pytest.TempPathFactory)
         dump_inputs = _candump(vcan0, inputs)
         env = {**os.environ, "NOTIFY_SOCKET": str(notify.path)}
         gateway = subprocess.Popen(
-            [sys.executable, "-m", "gateway.cli", "-v", "run", "--config", str(config)],
+            [sys.executable, "-m", "gateway.cli.main", "-v", "run", "--config", str(config)],
             cwd=REPO, env=env, stderr=subprocess.PIPE, text=True,
         )  # fmt: skip
         try:

@@ -1,0 +1,1 @@
+"""The `navgw` command line: one module per sub-command, each a thin layer over the library."""

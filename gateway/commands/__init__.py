@@ -1,1 +1,0 @@
-"""One module per ``navgw`` sub-command, each a thin layer over library functions."""

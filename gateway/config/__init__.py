@@ -1,0 +1,1 @@
+"""The gateway's TOML configuration (SPEC 5): sections, schema checks, defaults."""

@@ -1,0 +1,340 @@
+"""The service configuration (TOML): every section, its defaults, and the engine it builds.
+
+SPEC 5 fixes ``[vehicle]``; the other sections are the product's own. Defaults live here
+once (output rates come from the scheduler's SPEC 4 table); ``navgw config --example``
+prints them with their comments. Lever arms and GNSS timing are given once, in
+``[vehicle]`` and ``[gnss]``, and handed to whichever engine runs.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Iterable
+from dataclasses import dataclass, field
+from enum import Enum
+from pathlib import Path
+from typing import Any
+
+from gateway.config.config_schema import (
+    ConfigError,
+    from_table,
+    in_range,
+    load_toml,
+    source_comments,
+)
+from gateway.estimation.ekf.ekf_config import EkfConfig
+from gateway.estimation.ekf.ekf_engine import EkfEngine
+from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.observer.observer_config import ObserverConfig
+from gateway.estimation.observer.observer_engine import ObserverEngine
+from gateway.estimation.solution import Estimator
+from gateway.isobus.j1939 import DEFAULT_MANUFACTURER_CODE, DEFAULT_SOURCE_ADDRESS, Pgn
+from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, MAX_RATE_HZ
+
+Vec3 = tuple[float, float, float]
+
+
+def _doc(text: str, **extra: Any) -> dict[str, Any]:
+    """Field metadata: the comment ``navgw config --example`` prints beside the key."""
+    return {"doc": text, **extra}
+
+
+@dataclass(frozen=True)
+class VehicleSection:
+    """[vehicle], SPEC 5: where the sensors sit relative to the reference point."""
+
+    antenna_lever_arm_m: Vec3 = field(
+        default=(0.0, 0.0, 0.0), metadata=_doc("antenna relative to the reference point, body FRD")
+    )
+    imu_lever_arm_m: Vec3 = field(
+        default=(0.0, 0.0, 0.0), metadata=_doc("IMU relative to the reference point, body FRD")
+    )
+    imu_mounting_rpy_deg: Vec3 = field(
+        default=(0.0, 0.0, 0.0),
+        metadata=_doc("IMU axes in the body frame: v_b = Rz(yaw) Ry(pitch) Rx(roll) v_imu"),
+    )
+
+
+class Engine(Enum):
+    """Which estimator runs."""
+
+    OBSERVER = "observer"
+    EKF = "ekf"
+
+
+@dataclass(frozen=True)
+class EstimatorSection:
+    """[estimator]: the engine; its tuning is in [observer] or [ekf]."""
+
+    engine: Engine = field(
+        default=Engine.OBSERVER,
+        metadata=_doc('"observer" (Tereshkov bias observer) or "ekf" (15-state GNSS/INS EKF)'),
+    )
+
+
+@dataclass(frozen=True)
+class ImuSection:
+    """[imu]: the CAN bus of the ADIS16334 bridge (SPEC 1)."""
+
+    interface: str = field(default="socketcan", metadata=_doc("python-can interface"))
+    channel: str = field(default="can0", metadata=_doc("python-can channel"))
+    bridge_source_address: int = field(
+        default=0x80, metadata=_doc("source address of the bridge's frames", **in_range(0, 253))
+    )
+
+
+@dataclass(frozen=True)
+class GnssSection:
+    """[gnss]: the receiver's serial port (SPEC 2) and how its epochs line up with IMU time."""
+
+    port: str = field(default="/dev/ttyUSB0", metadata=_doc("serial device of the receiver"))
+    baudrate: int = field(default=115200, metadata=_doc("8N1", **in_range(1200, 4_000_000)))
+    epoch_time: EpochTime = field(
+        default=EpochTime.AUTO,
+        metadata=_doc(
+            "auto: NMEA UTC when the receive delays say the host clock follows UTC"
+            " (0-0.5 s), else receive; utc (PPS/NTP host) or receive (free clock) to force"
+        ),
+    )
+    receiver_latency_s: float = field(
+        default=0.05,
+        metadata=_doc(
+            "least delay from an epoch to the receipt of its last sentence (receive mode)",
+            **in_range(0.0, 1.0),
+        ),
+    )
+
+
+@dataclass(frozen=True)
+class IsobusSection:
+    """[isobus]: the output bus and the ISO 11783-5 NAME the gateway claims with."""
+
+    interface: str | None = field(
+        default=None, metadata=_doc("python-can interface; unset: [imu]'s")
+    )
+    channel: str | None = field(default=None, metadata=_doc("python-can channel; unset: [imu]'s"))
+    preferred_address: int = field(
+        default=DEFAULT_SOURCE_ADDRESS, metadata=_doc("claimed first", **in_range(0, 253))
+    )
+    identity_number: int = field(
+        default=1, metadata=_doc("NAME identity (serial number)", **in_range(0, (1 << 21) - 1))
+    )
+    manufacturer_code: int = field(
+        default=DEFAULT_MANUFACTURER_CODE,
+        metadata=_doc("NAME and proprietary-frame manufacturer code", **in_range(0, 2047)),
+    )
+    ecu_instance: int = field(default=0, metadata=_doc("NAME ECU instance", **in_range(0, 7)))
+    function_instance: int = field(
+        default=0, metadata=_doc("NAME function instance", **in_range(0, 31))
+    )
+
+
+#: [output] key of each SPEC 4 PGN.
+OUTPUT_KEYS: dict[str, Pgn] = {
+    "attitude_hz": Pgn.ATTITUDE,
+    "rate_of_turn_hz": Pgn.RATE_OF_TURN,
+    "vessel_heading_hz": Pgn.VESSEL_HEADING,
+    "position_rapid_hz": Pgn.POSITION_RAPID_UPDATE,
+    "cog_sog_rapid_hz": Pgn.COG_SOG_RAPID_UPDATE,
+    "gnss_position_hz": Pgn.GNSS_POSITION_DATA,
+    "gyro_bias_hz": Pgn.NAVGW_GYRO_BIAS,
+    "accel_bias_hz": Pgn.NAVGW_ACCEL_BIAS,
+    "status_hz": Pgn.NAVGW_STATUS,
+}
+
+
+def _rate(key: str) -> Any:
+    pgn = OUTPUT_KEYS[key]
+    return field(
+        default=DEFAULT_RATES_HZ[pgn],
+        metadata=_doc(f"PGN {int(pgn)}, 0 = off", **in_range(0.0, MAX_RATE_HZ)),
+    )
+
+
+@dataclass(frozen=True)
+class OutputSection:
+    """[output]: rate of each SPEC 4 frame, Hz."""
+
+    attitude_hz: float = _rate("attitude_hz")
+    rate_of_turn_hz: float = _rate("rate_of_turn_hz")
+    vessel_heading_hz: float = _rate("vessel_heading_hz")
+    position_rapid_hz: float = _rate("position_rapid_hz")
+    cog_sog_rapid_hz: float = _rate("cog_sog_rapid_hz")
+    gnss_position_hz: float = _rate("gnss_position_hz")
+    gyro_bias_hz: float = _rate("gyro_bias_hz")
+    accel_bias_hz: float = _rate("accel_bias_hz")
+    status_hz: float = _rate("status_hz")
+
+    def rates_hz(self) -> dict[Pgn, float]:
+        """Rates keyed by PGN, as the scheduler takes them."""
+        return {pgn: getattr(self, key) for key, pgn in OUTPUT_KEYS.items()}
+
+
+@dataclass(frozen=True)
+class RecordingSection:
+    """[recording]: optional recording of the inputs in the SPEC 3 log formats."""
+
+    enabled: bool = field(default=False, metadata=_doc("record IMU frames and NMEA sentences"))
+    directory: str = field(default="/var/lib/navgw/recordings", metadata=_doc("where"))
+    max_file_mb: float = field(
+        default=100.0, metadata=_doc("rotate a log at this size", **in_range(0.1, 1e5))
+    )
+    keep_files: int = field(
+        default=20, metadata=_doc("oldest logs beyond this many are deleted", **in_range(1, 10_000))
+    )
+
+
+#: Sections with a plain dataclass, in the order the example prints them.
+SECTIONS: dict[str, type] = {
+    "vehicle": VehicleSection,
+    "estimator": EstimatorSection,
+    "imu": ImuSection,
+    "gnss": GnssSection,
+    "isobus": IsobusSection,
+    "output": OutputSection,
+    "recording": RecordingSection,
+}
+
+#: Engine tuning sections; their shared fields come from [vehicle] and [gnss].
+ENGINE_SECTIONS: dict[str, type] = {"observer": ObserverConfig, "ekf": EkfConfig}
+
+#: Engine config fields that come from [vehicle] and [gnss] instead of [observer]/[ekf].
+_SHARED = {
+    "antenna_lever_arm_m": "vehicle",
+    "imu_lever_arm_m": "vehicle",
+    "epoch_time": "gnss",
+    "receiver_latency_s": "gnss",
+}
+
+
+@dataclass(frozen=True)
+class GatewayConfig:
+    """The whole configuration, validated."""
+
+    vehicle: VehicleSection = VehicleSection()
+    estimator: EstimatorSection = EstimatorSection()
+    imu: ImuSection = ImuSection()
+    gnss: GnssSection = GnssSection()
+    isobus: IsobusSection = IsobusSection()
+    output: OutputSection = OutputSection()
+    recording: RecordingSection = RecordingSection()
+    observer: ObserverConfig = field(default_factory=ObserverConfig)
+    ekf: EkfConfig = field(default_factory=EkfConfig)
+
+    def shared(self) -> dict[str, Any]:
+        """The engine settings given once in [vehicle] and [gnss] (any engine's own ignored)."""
+        return {key: getattr(getattr(self, section), key) for key, section in _SHARED.items()}
+
+    def with_engine(self, engine: Engine) -> GatewayConfig:
+        """This config with another engine (``--engine`` on the command line)."""
+        return dataclasses.replace(self, estimator=EstimatorSection(engine=engine))
+
+    def lever_arm_warning(self) -> str | None:
+        """The warning of ``navgw run`` and ``navgw replay`` when the antenna lever arm is zero
+        (None when it is set): zero is the default, so a forgotten [vehicle] or --config
+        silently moves the reference point to the antenna."""
+        if any(self.vehicle.antenna_lever_arm_m):
+            return None
+        return "[vehicle] antenna_lever_arm_m is zero: the reference point is the antenna"
+
+    def make_engine(self) -> Estimator:
+        """The configured estimator, with this config's geometry and timing."""
+        if self.estimator.engine is Engine.EKF:
+            return EkfEngine(dataclasses.replace(self.ekf, **self.shared()))
+        return ObserverEngine(dataclasses.replace(self.observer, **self.shared()))
+
+
+def config_from_table(table: dict[str, Any], where: str = "config") -> GatewayConfig:
+    """Validate a parsed TOML document; unknown tables and keys are errors that name them."""
+    unknown = sorted(set(table) - set(SECTIONS) - set(ENGINE_SECTIONS))
+    if unknown:
+        raise ConfigError(
+            f"unknown section [{unknown[0]}] in {where}: expected one of "
+            + ", ".join(f"[{s}]" for s in [*SECTIONS, *ENGINE_SECTIONS])
+        )
+    sections: dict[str, Any] = {
+        name: from_table(cls, table.get(name, {}), name)
+        for name, cls in {**SECTIONS, **ENGINE_SECTIONS}.items()
+    }
+    for name in ENGINE_SECTIONS:
+        for key, value in table.get(name, {}).items():
+            if key in _SHARED:
+                raise ConfigError(f"{name}.{key}: set it once, in [{_SHARED[key]}] {key}")
+            if problem := _engine_value_problem(key, getattr(sections[name], key)):
+                raise ConfigError(f"{name}.{key} = {value!r}: expected {problem}")
+    return GatewayConfig(**sections)
+
+
+#: Engine tunings that may be zero (a noise term left out) or any value (a bearing).
+_MAY_BE_ZERO = frozenset({"vibration_gyro_dps", "vibration_accel_mps2"})
+_ANY_VALUE = frozenset({"ab_line_bearing_deg"})
+
+
+def _engine_value_problem(key: str, value: object) -> str | None:
+    """Every number of [observer] and [ekf] is a time constant, a noise, a rate, a speed, a
+    gate or a count that the engines divide by or compare against: positive (tau_s = 0 passed
+    the check, then replay died dividing by it)."""
+    if key in _ANY_VALUE or isinstance(value, bool) or not isinstance(value, int | float):
+        return None
+    if key in _MAY_BE_ZERO:
+        return None if value >= 0 else "a number >= 0"
+    return None if value > 0 else "a number > 0"
+
+
+def load_config(path: str | Path | None) -> GatewayConfig:
+    """The config of a TOML file (None: all defaults); errors name the file and the key."""
+    if path is None:
+        return GatewayConfig()
+    table = load_toml(path)  # its own errors name the file
+    try:
+        return config_from_table(table, str(path))
+    except ConfigError as err:
+        raise ConfigError(f"{path}: {err}") from None
+
+
+def example_toml() -> str:
+    """A complete, commented config with every default, as ``navgw config --example`` prints."""
+    title = "navgw configuration (TOML). Every key is optional; shown are the defaults."
+    return config_toml(GatewayConfig(), title, [*SECTIONS, *ENGINE_SECTIONS])
+
+
+def config_toml(config: GatewayConfig, title: str, sections: Iterable[str]) -> str:
+    """``sections`` of ``config`` as commented TOML: each key with its value and its meaning
+    (``navgw config --example``; ``navgw sim`` writes a simulated vehicle's this way)."""
+    lines = [f"# {title}"]
+    for name in sections:
+        table = getattr(config, name)
+        lines += ["", f"[{name}]", f"# {_section_header(name, type(table))}"]
+        comments = source_comments(type(table))
+        for f in dataclasses.fields(table):
+            if name in ENGINE_SECTIONS and f.name in _SHARED:
+                continue
+            value = getattr(table, f.name)
+            comment = f.metadata.get("doc") or comments.get(f.name)
+            text = hex(value) if "address" in f.name else _toml_value(value)
+            line = f"{f.name} = {text}" if text is not None else f"# {f.name} = (unset)"
+            lines.append(f"{line}  # {comment}" if comment else line)
+    return "\n".join(lines) + "\n"
+
+
+def _section_header(name: str, cls: type) -> str:
+    """The line under ``[name]``: the section class's summary, or for an engine's tuning (whose
+    class docstring is Sphinx markup) which engine it tunes and where its shared keys are."""
+    if name not in ENGINE_SECTIONS:
+        return (cls.__doc__ or "").strip().splitlines()[0]
+    shared = " and ".join(f"[{section}]" for section in dict.fromkeys(_SHARED.values()))
+    return f'tuning of engine = "{name}"; its lever arms and GNSS timing are set in {shared}'
+
+
+def _toml_value(value: Any) -> str | None:
+    if value is None:
+        return None
+    if isinstance(value, Enum):
+        return _toml_value(value.value)
+    if isinstance(value, bool):
+        return "true" if value else "false"
+    if isinstance(value, str):
+        return f'"{value}"'
+    if isinstance(value, tuple | list):
+        return "[" + ", ".join(str(_toml_value(v)) for v in value) + "]"
+    return repr(value)

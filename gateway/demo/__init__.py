@@ -1,0 +1,1 @@
+"""The demo and its evaluation helpers: the only product code that imports sim_bus."""

@@ -1,0 +1,125 @@
+"""Parameters of the loosely coupled GNSS/INS EKF engine (ALGORITHMS.md 3, seed 002).
+
+Sensor noise defaults are the ADIS16334 datasheet figures (Analog Devices, Rev. B, Table 1,
+typical; the same table as :mod:`sim_bus.adis16334`, which models them). Field names carry
+their unit so that the TOML keys read the same; degrees and mg appear only here (the engine
+converts to SI once, :class:`EkfTuning`). Fields whose meaning is the observer's keep its name
+(:class:`gateway.estimation.observer.observer_config.ObserverConfig`): lever arms, GNSS timing,
+alignment,
+stationarity, fix-quality sets, convergence thresholds.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.observer.observer_config import GRAVITY_MPS2, Vec3Tuple
+
+DEG = math.pi / 180.0
+MG_MPS2 = GRAVITY_MPS2 * 1e-3
+SQRT_HOUR_S = 60.0  # sqrt(3600 s)
+#: Allan-deviation floor of a first-order Gauss-Markov process / its sigma (at tau = 1.89 T):
+#: a datasheet "in-run bias stability" B is a Gauss-Markov sigma of B / 0.6174.
+GM_ALLAN_FLOOR = 0.6174
+
+
+@dataclass(frozen=True)
+class EkfConfig:
+    """Everything :class:`gateway.estimation.ekf.ekf_engine.EkfEngine` can be tuned with."""
+
+    # --- IMU noise, ADIS16334 datasheet (Table 1) ---
+    gyro_arw_deg_per_sqrt_h: float = 2.0  # angular random walk: white rate noise density
+    accel_vrw_mps_per_sqrt_h: float = 0.12  # velocity random walk: white accel noise density
+    gyro_bias_stability_dps: float = 0.007  # in-run bias stability (Allan floor)
+    accel_bias_stability_mg: float = 0.1  # in-run bias stability (Allan floor)
+    bias_correlation_time_s: float = 100.0  # Gauss-Markov time of the in-run bias
+    # Turn-on bias 1-sigma after installation nulling (initial P; what the simulator draws)
+    gyro_bias_sigma0_dps: float = 0.1
+    accel_bias_sigma0_mps2: float = 5.0 * MG_MPS2
+    # Engine vibration seen by the IMU (installation, not datasheet): broadband 1-sigma per
+    # sample, added to the white noise densities as sigma^2 dt
+    vibration_gyro_dps: float = 0.05
+    vibration_accel_mps2: float = 0.2
+
+    # --- vehicle geometry (SPEC 5) ---
+    antenna_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # antenna rel. reference point, body
+    imu_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # IMU rel. reference point, body
+
+    # --- GNSS timing ---
+    epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock
+    receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
+    gnss_timeout_s: float = 1.5  # no accepted fix for this long (receive time): COASTING
+    max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
+    history_s: float = 5.0  # INS history kept for late epochs (a loaded host delays them)
+
+    # --- GNSS measurement noise ---
+    gnss_sigma_scale: float = 5.0  # R = (scale * GST sigma)^2: RTK errors are time-correlated
+    gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma with RTK fixed
+    navigating_fix_qualities: tuple[int, ...] = (4,)  # other usable qualities: DEGRADED
+
+    # --- gating and recovery ---
+    gate_sigma: float = 5.0  # NIS gate: chi-square tail of a 5-sigma normal event per dof
+    reset_outage_s: float = 30.0  # no accepted position this long: re-initialise from GNSS
+    reset_rejections: int = 20  # or this many positions of a continuous GNSS track rejected
+    position_reset_s: float = 10.0  # or rejected this long after a GNSS jump (it moved, reset)
+
+    # --- land-vehicle pseudo-measurements ---
+    nhc_sigma_mps: float = 0.05  # reference-point lateral/vertical body velocity 1-sigma
+    nhc_interval_s: float = 0.1  # non-holonomic constraint fused this often
+    hdt_sigma_deg: float = 0.2  # dual-antenna heading 1-sigma
+
+    # --- covariance propagation ---
+    covariance_period_s: float = 0.05  # F accumulated over the IMU samples of this interval
+
+    # --- initial alignment ---
+    align_quiet_rate_dps: float = 2.0  # |w| below this counts as still
+    align_tilt_time_s: float = 1.0  # mean specific force over this long gives roll/pitch
+    align_min_speed_mps: float = 1.5  # first course over ground used at this speed
+    align_yaw_sigma_deg: float = 3.0  # heading 1-sigma after COG alignment
+    align_vel_sigma_mps: float = 0.1  # velocity 1-sigma at alignment (lever arm, latency)
+
+    # --- read-out ---
+    stationary_speed_mps: float = 0.1  # reference-point speed below this ...
+    stationary_rate_dps: float = 1.0  # ... and |w_b| below this: stationary
+    reverse_detect_speed_mps: float = 0.3  # forward/reverse decided above this body speed
+    gyro_xy_converged_dps: float = 0.005  # P 1-sigma for "gyro x/y bias converged"
+    gyro_z_converged_dps: float = 0.02  # P 1-sigma for "gyro z bias converged"
+    accel_xy_converged_mps2: float = 0.01  # P 1-sigma for "accel x/y bias converged"
+    imu_alarm_fault_s: float = 1.0  # IMU alarm/invalid data for this long: FAULT
+
+
+@dataclass(frozen=True)
+class EkfTuning:
+    """The config's noise figures in SI, as the filter uses them (continuous-time)."""
+
+    q_gyro_rad2_per_s: float  # white rate noise PSD (rad/s)^2/Hz
+    q_accel_m2_per_s3: float  # white accel noise PSD (m/s^2)^2/Hz
+    q_bias_g_rad2_per_s3: float  # gyro bias random-walk PSD
+    q_bias_a_m2_per_s5: float  # accel bias random-walk PSD
+    sigma_bias_g0_rps: float
+    sigma_bias_a0_mps2: float
+
+    @classmethod
+    def from_config(cls, cfg: EkfConfig, imu_dt_s: float) -> EkfTuning:
+        """ARW/VRW -> PSD; vibration sigma^2 dt adds to it; bias stability -> Gauss-Markov.
+
+        The in-run bias is the Gauss-Markov process of the datasheet (sigma = stability /
+        0.6174, time constant T), driven by white noise of PSD 2 sigma^2 / T. The filter keeps
+        the driving noise but not the decay towards zero: the turn-on part of the bias is
+        constant and a decaying model would pull it back to zero between observations.
+        """
+        arw = cfg.gyro_arw_deg_per_sqrt_h * DEG / SQRT_HOUR_S
+        vrw = cfg.accel_vrw_mps_per_sqrt_h / SQRT_HOUR_S
+        sig_g = cfg.gyro_bias_stability_dps * DEG / GM_ALLAN_FLOOR
+        sig_a = cfg.accel_bias_stability_mg * MG_MPS2 / GM_ALLAN_FLOOR
+        tau = cfg.bias_correlation_time_s
+        return cls(
+            q_gyro_rad2_per_s=arw**2 + (cfg.vibration_gyro_dps * DEG) ** 2 * imu_dt_s,
+            q_accel_m2_per_s3=vrw**2 + cfg.vibration_accel_mps2**2 * imu_dt_s,
+            q_bias_g_rad2_per_s3=2.0 * sig_g**2 / tau,
+            q_bias_a_m2_per_s5=2.0 * sig_a**2 / tau,
+            sigma_bias_g0_rps=cfg.gyro_bias_sigma0_dps * DEG,
+            sigma_bias_a0_mps2=cfg.accel_bias_sigma0_mps2,
+        )

@@ -1,0 +1,707 @@
+"""The EKF engine: 15-state loosely coupled GNSS/INS filter behind the Estimator protocol.
+
+Per IMU sample (:meth:`EkfEngine.imu`): strapdown mechanisation of the IMU point, a history
+row (for late GNSS epochs), and every ``covariance_period_s`` the covariance prediction from
+the accumulated IMU sums, then the non-holonomic constraint every ``nhc_interval_s``. Per GNSS
+epoch (:meth:`EkfEngine.gnss`): epoch time, then alignment, reset or fusion of position,
+horizontal velocity and HDT. Pure code: no I/O, no clock; time comes from the samples.
+
+Design choices (ALGORITHMS.md 3 leaves them to the implementer):
+
+- State location: the INS state is the IMU point; antenna and reference point are reached
+  through the lever arms (measurement models, read-out), so the mechanisation needs no
+  lever-arm accelerations.
+- Late epochs: a fix describes the epoch ``t_e`` (:mod:`gateway.estimation.epoch_clock`) and arrives
+  later. The innovation and H are computed against the INS state interpolated from the
+  history at ``t_e``; the correction is
+  applied to the current state (and to the history, so that the next epoch is not double
+  counted). Approximation: the error state is taken as constant over the delay (< 0.1 s:
+  dv * delay is ~1 mm).
+- Covariance runs at ~20 Hz on IMU sums
+  (:func:`gateway.estimation.ekf.error_state.transition_matrix`), flushed
+  before every update.
+- Yaw: the non-holonomic constraint (zero lateral and vertical velocity of the reference
+  point) ties yaw to the direction of travel whenever the vehicle moves, forwards or in
+  reverse; HDT is fused when present. No COG pseudo-measurement is needed.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from collections import deque
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from drivers.log_limit import LogLimiter
+from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix, ImuSample
+from gateway.estimation.attitude import (
+    dcm_from_rpy,
+    exp_so3,
+    roll_pitch_from_specific_force,
+    rpy_from_dcm,
+    skew,
+    to_mat9,
+)
+from gateway.estimation.ekf.ekf_config import DEG, EkfConfig, EkfTuning
+from gateway.estimation.ekf.error_state import (
+    ATT,
+    BA,
+    BG,
+    N_STATES,
+    POS,
+    VEL,
+    Measurement,
+    Strapdown,
+    correct,
+    fuse_heading,
+    fuse_nonholonomic,
+    fuse_position,
+    fuse_velocity,
+    predict,
+    process_noise_psd,
+    transition_matrix,
+)
+from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
+from gateway.estimation.geodesy import LocalFrame
+from gateway.estimation.gnss_track import GnssTrack
+from gateway.estimation.levelling import WindowMotion
+from gateway.estimation.observer.observer_config import GRAVITY_MPS2
+from gateway.estimation.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
+
+Array = npt.NDArray[np.float64]
+log = logging.getLogger(__name__)
+
+#: Tilt alignment accepts a non-quiet window after this long (vehicle never still).
+ALIGN_TIMEOUT_S = 10.0
+#: Earth rate, rad/s: part of the gyro mean at rest (mechanisation drops it, see
+#: gateway.estimation.ekf.error_state).
+EARTH_RATE_RPS = 7.292115e-5
+#: Below this GNSS speed the receiver's course is unreliable (held): direction unknown.
+COG_RELIABLE_SPEED_MPS = 0.1
+
+#: Half width of the window of body rates averaged for the antenna lever-arm velocity.
+LEVER_RATE_HALF_WIDTH_S = 0.05
+
+# history row columns: t, p (3), v (3), C_bn row major (9), w_b (3)
+_T, _P, _V, _C, _W = 0, slice(1, 4), slice(4, 7), slice(7, 16), slice(16, 19)
+_ROW = 19
+
+
+@dataclass
+class EkfCounters:
+    """Rejected and special updates since start (for status and tests)."""
+
+    position_rejected: int = 0
+    velocity_rejected: int = 0
+    heading_rejected: int = 0
+    nonholonomic_rejected: int = 0
+    late_epochs: int = 0  # epoch older than the INS history: dropped
+    resets: int = 0  # position/velocity re-initialised from GNSS
+
+
+class _History:
+    """Ring buffer of INS rows (numpy, shape (n, 19)) for epochs that arrive late."""
+
+    def __init__(self, n: int) -> None:
+        self._buf = np.zeros((n, _ROW))
+        self._head = 0
+        self._count = 0
+
+    def append(self, row: tuple[float, ...]) -> None:
+        self._buf[self._head] = row
+        self._head = (self._head + 1) % len(self._buf)
+        self._count = min(self._count + 1, len(self._buf))
+
+    def _ordered(self) -> Array:
+        if self._count < len(self._buf):
+            return self._buf[: self._count]
+        return np.concatenate((self._buf[self._head :], self._buf[: self._head]))
+
+    def at(self, t_s: float) -> Array | None:
+        """Row (19,) linearly interpolated at ``t_s``; None if outside the history."""
+        rows = self._ordered()
+        if len(rows) == 0 or not rows[0, _T] <= t_s <= rows[-1, _T]:
+            return None
+        i = int(np.searchsorted(rows[:, _T], t_s))
+        if i == 0:
+            return rows[0].copy()
+        a, b = rows[i - 1], rows[i]
+        u = (t_s - a[_T]) / (b[_T] - a[_T])
+        return a + u * (b - a)
+
+    @property
+    def full(self) -> bool:
+        """Rows are being overwritten: the history spans its whole length."""
+        return self._count == len(self._buf)
+
+    def oldest_s(self) -> float:
+        """Time of the oldest row kept."""
+        return float(self._ordered()[0, _T])
+
+    def mean_rate(self, t_s: float, half_width_s: float) -> Array:
+        """Mean body rate (3,) of the rows within ``half_width_s`` of ``t_s`` (centred, no lag)."""
+        rows = self._ordered()
+        near = np.abs(rows[:, _T] - t_s) <= half_width_s
+        return np.asarray(rows[near, _W].mean(axis=0)) if near.any() else rows[-1, _W].copy()
+
+    def shift(self, dp: Array, dv: Array, rot: Array, t_e: float = math.inf) -> None:
+        """Apply a state correction of time ``t_e`` to every row: p += dp (+ dv (t - t_e)
+        after t_e), v += dv, C <- rot C."""
+        rows = self._buf[: self._count]
+        rows[:, _P] += dp + np.maximum(rows[:, _T] - t_e, 0.0)[:, None] * dv
+        rows[:, _V] += dv
+        rows[:, _C] = (rot @ rows[:, _C].reshape(-1, 3, 3)).reshape(-1, 9)
+
+
+class EkfEngine:
+    """Loosely coupled GNSS/INS error-state EKF (ALGORITHMS.md 3) behind the Estimator protocol."""
+
+    def __init__(self, config: EkfConfig | None = None) -> None:
+        cfg = config if config is not None else EkfConfig()
+        self.cfg = cfg
+        self.counters = EkfCounters()
+        self._log = LogLimiter(log)
+        self._clock = EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
+        self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
+        self._l_imu_ant_b = self._l_ant_b - self._l_imu_b  # antenna relative to the IMU
+        self._tuning: EkfTuning | None = None
+        self._q_c = np.zeros(N_STATES)
+        self._ins: Strapdown | None = None
+        self._p: Array | None = None  # error covariance (15, 15); None until heading is known
+        self._hist: _History | None = None
+        self._pending: deque[tuple[float, GnssFix]] = deque(maxlen=16)
+        self._timing = ImuTiming()
+        self._frame: LocalFrame | None = None  # local NED around the first position used
+        self._t_s: float | None = None
+        # alignment: mean specific force and rate over the current quiet window
+        self._align_first_s: float | None = None
+        self._win_t0_s: float | None = None
+        self._win_sum = np.zeros(6)
+        self._win_n = 0
+        self._win_at_rest = True  # every sample of the window quiet and GNSS speed ~0
+        self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
+        self._rest_bias_s = 0.0  # rest duration behind the gyro bias estimate, 0 if none
+        self._win_motion = WindowMotion(self.cfg.gnss_vel_sigma_mps, self.cfg.stationary_speed_mps)
+        self._sigma_level_rad = 0.0  # tilt error of the window's own motion (levelling.py)
+        # GNSS bookkeeping
+        self._last_fix: GnssFix | None = None
+        self._last_quality: FixQuality | None = None
+        self._t_accepted_rx_s: float | None = None  # receive time of the last accepted fix
+        self._t_pos_epoch_s: float | None = None  # epoch of the last accepted position
+        self._track = GnssTrack()  # the receiver's own track: glitch or filter off?
+        self._t_nhc_s = -math.inf
+        # motion flags and IMU health
+        self._reversing = False
+        self._stationary = False
+        self._imu_alarm = False
+        self._bad_since_s: float | None = None
+
+    # ======================================================================== prediction
+
+    def imu(self, sample: ImuSample) -> None:
+        """Propagate with one IMU sample (body frame, bias not yet removed)."""
+        t, dt = sample.t, self._timing.step(sample)
+        w, f = sample.w_ib_b.tolist(), sample.f_ib_b.tolist()
+        if not (dt > 0.0 and math.isfinite(t + dt + sum(w) + sum(f))):
+            self._mark_bad(t)
+            return
+        self._imu_alarm = sample.alarm
+        if sample.alarm or sample.saturated:
+            self._mark_bad(t)
+        else:
+            self._bad_since_s = None
+        if self._tuning is None:
+            self._tuning = EkfTuning.from_config(self.cfg, dt)
+            self._q_c = process_noise_psd(self._tuning)
+            self._hist = _History(max(2, math.ceil(self.cfg.history_s / dt)))
+        self._t_s = t
+        if self._p is None:
+            self._align_tilt(t, w, f)
+        ins = self._ins
+        if ins is None:
+            return
+        ins.propagate(w, f, dt)
+        assert self._hist is not None
+        self._hist.append((t, *ins.p_ned_m, *ins.v_ned_mps, *ins.c_bn9, *ins.w_b_rps))
+        if self._p is not None and ins.sum_dt_s >= self.cfg.covariance_period_s:
+            self._predict()
+            if t - self._t_nhc_s >= self.cfg.nhc_interval_s:
+                self._fuse_nonholonomic(t)
+        pending = self._pending
+        while pending and pending[0][0] <= t:
+            t_e, fix = pending.popleft()
+            self._fuse_epoch(fix, t_e)
+
+    def _predict(self) -> None:
+        """Covariance prediction over the IMU samples since the last one."""
+        assert self._ins is not None and self._p is not None
+        t_s, dv_f, c_dt = self._ins.take_interval()
+        if t_s > 0.0:
+            predict(self._p, transition_matrix(t_s, dv_f, c_dt), self._q_c, t_s)
+
+    def _align_tilt(self, t: float, w: list[float], f: list[float]) -> None:
+        """Roll/pitch from the mean specific force of a quiet window; gyro bias if at rest.
+
+        Quiet = |w| below ``align_quiet_rate_dps`` and, once GNSS speaks, speed below
+        ``stationary_speed_mps``. The window grows while quiet and re-levels the INS every
+        ``align_tilt_time_s`` until the heading is known, so alignment uses the last rest
+        before the vehicle drives off. At rest the mean rate is the gyro bias plus Earth rate
+        (at most 0.004 deg/s, left in its 1-sigma). If never quiet for ``ALIGN_TIMEOUT_S``,
+        a moving window levels the INS (no gyro bias) and the filter finishes the job.
+        """
+        if self._align_first_s is None:
+            self._align_first_s = t
+        fix = self._last_fix
+        still = fix is None or fix.sog_mps is None or fix.sog_mps < self.cfg.stationary_speed_mps
+        quiet = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2) < self.cfg.align_quiet_rate_dps * DEG
+        if not (quiet and still):
+            if self._ins is not None or t - self._align_first_s < ALIGN_TIMEOUT_S:
+                self._win_t0_s = None
+                return
+            self._win_at_rest = False
+        if self._win_t0_s is None:
+            self._win_t0_s = t
+            self._win_sum[:] = 0.0
+            self._win_n = 0
+            self._win_at_rest = True
+            self._win_motion.restart()
+        self._win_sum += (*f, *w)
+        self._win_n += 1
+        span = t - self._win_t0_s
+        if span < self.cfg.align_tilt_time_s or t - self._t_levelled_s < self.cfg.align_tilt_time_s:
+            return
+        mean = self._win_sum / self._win_n
+        roll, pitch = roll_pitch_from_specific_force(mean[:3])
+        yaw = 0.0 if self._ins is None else rpy_from_dcm(self._ins.c_bn)[2]
+        if self._ins is None:
+            self._ins = Strapdown(dcm_from_rpy(roll, pitch, yaw))
+        else:
+            self._ins.c_bn9 = to_mat9(dcm_from_rpy(roll, pitch, yaw))
+        if self._win_at_rest:
+            self._ins.bias_g_rps = [float(x) for x in mean[3:]]
+            self._rest_bias_s = span
+        self._sigma_level_rad = self._win_motion.tilt_sigma_rad()
+        self._t_levelled_s = t
+
+    # ======================================================================= corrections
+
+    def gnss(self, fix: GnssFix) -> None:
+        """Correct with one GNSS epoch; it may arrive after IMU samples of later time.
+
+        An epoch whose time is ahead of the last IMU sample waits until the IMU covers it.
+        """
+        self._last_fix = fix
+        if self._p is None and self._win_t0_s is not None:
+            self._win_motion.add(fix)
+        if self._ins is None or fix.quality == FixQuality.NONE:
+            return
+        t_e = self._clock.epoch_time(fix)
+        if self._t_s is None or t_e > self._t_s:
+            self._pending.append((t_e, fix))
+            return
+        self._fuse_epoch(fix, t_e)
+
+    def _fuse_epoch(self, fix: GnssFix, t_e: float) -> None:
+        """Align, reset or fuse one epoch against the INS state at its epoch time ``t_e``."""
+        assert self._hist is not None
+        row = self._hist.at(t_e)
+        if row is None:
+            if self._hist.full:  # not an epoch from before the engine started
+                self.counters.late_epochs += 1
+                self._log.warning(t_e, late_epoch_text(t_e, self._hist.oldest_s()), "late")
+            return
+        if self._p is None:
+            self._align_heading(fix, t_e, row)
+            return
+        self._predict()
+        p = self._p
+        sig_pos = self._position_sigma(fix)
+        quality_changed = self._last_quality not in (None, fix.quality)
+        if quality_changed and sig_pos is not None:
+            # a quality change is a new receiver solution: an independent position error
+            p[POS, POS] += np.diag(sig_pos**2)
+        self._last_quality = fix.quality
+        p_ant = self._antenna_ned(fix) if sig_pos is not None else None
+        if p_ant is not None:
+            p_ne = (float(p_ant[0]), float(p_ant[1]))
+            self._track.add(t_e, p_ne, fix.vel_ne_mps, fix.horizontal_sigma_m)
+        since = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
+        if sig_pos is not None and (
+            since > self.cfg.reset_outage_s
+            or self._track.reset_due(t_e, self.cfg.reset_rejections, self.cfg.position_reset_s)
+        ):
+            self._reset_from_fix(fix, t_e, row, sig_pos)
+            return
+        c_e = row[_C].reshape(3, 3)
+        measurements: list[Measurement] = []
+        if sig_pos is not None and p_ant is not None:
+            measurements.append(fuse_position(row[_P], c_e, self._l_imu_ant_b, p_ant, sig_pos))
+        vel = self._gnss_velocity(fix)
+        if vel is not None:
+            w_e, sig_lever = self._lever_rate(t_e)
+            measurements.append(
+                fuse_velocity(
+                    row[_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
+                )
+            )
+        if fix.heading_rad is not None:
+            measurements.append(fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG))
+        dx = np.zeros(N_STATES)
+        accepted = False
+        for m in measurements:
+            ok = correct(p, dx, m, self.cfg.gate_sigma).accepted
+            accepted |= ok
+            if m.name == "position":
+                if ok:
+                    self._t_pos_epoch_s = t_e
+                    self._track.accepted()
+                else:
+                    self.counters.position_rejected += 1
+                    self._track.rejected(t_e)
+                    self._log.warning(
+                        t_e,
+                        f"GNSS position glitch at t={t_e:.3f}: beyond the filter's "
+                        f"{self.cfg.gate_sigma:g}-sigma gate (quality {int(fix.quality)}); "
+                        "position not used",
+                        "glitch",
+                    )
+            elif not ok and m.name == "velocity":
+                self.counters.velocity_rejected += 1
+            elif not ok:
+                self.counters.heading_rejected += 1
+        if accepted:
+            self._t_accepted_rx_s = fix.t
+            self._inject(dx, t_e)
+
+    def _lever_rate(self, t_e: float) -> tuple[Array, float]:
+        """Body rate at ``t_e`` for the antenna lever-arm velocity, and that velocity's 1-sigma.
+
+        The history's mean over +/- ``LEVER_RATE_HALF_WIDTH_S`` (centred: no lag); its gyro
+        noise, sqrt(q_g / 2h) times the lever arm, is added to the velocity's sigma.
+        """
+        assert self._hist is not None and self._tuning is not None
+        h = LEVER_RATE_HALF_WIDTH_S
+        sig_w = math.sqrt(self._tuning.q_gyro_rad2_per_s / (2.0 * h))
+        return self._hist.mean_rate(t_e, h), sig_w * float(np.linalg.norm(self._l_imu_ant_b))
+
+    def _fuse_nonholonomic(self, t: float) -> None:
+        """Zero lateral/vertical velocity of the reference point, at the current state."""
+        ins = self._ins
+        assert ins is not None and self._p is not None
+        self._t_nhc_s = t
+        m = fuse_nonholonomic(
+            np.array(ins.v_ned_mps),
+            ins.c_bn,
+            np.array(ins.w_b_lp_rps),
+            -self._l_imu_b,
+            self.cfg.nhc_sigma_mps,
+        )
+        dx = np.zeros(N_STATES)
+        if correct(self._p, dx, m, self.cfg.gate_sigma).accepted:
+            self._inject(dx, t)
+        else:
+            self.counters.nonholonomic_rejected += 1
+        self._update_motion_flags()
+
+    def _inject(self, dx: Array, t_e: float) -> None:
+        """Feed the error estimate of time ``t_e`` back into the INS and its history; the
+        error state is then 0.
+
+        A velocity error at t_e has moved the position by dv (t - t_e) since: the current
+        state and the later history rows take it (first order of the transition over the
+        age). Without it, epochs that arrive seconds late (a loaded host) corrected the
+        position by dp only, and the next epoch, compared with the shifted history, found the
+        same error again: 8 m of error with epochs 4 s late in 2 s bursts, 0.x m with it.
+        """
+        assert self._ins is not None and self._hist is not None and self._t_s is not None
+        age_s = max(0.0, self._t_s - t_e)
+        dx_now = dx.copy()
+        dx_now[POS] += dx[VEL] * age_s
+        rot = self._ins.inject(dx_now)
+        self._hist.shift(dx[POS], dx[VEL], rot, t_e)
+
+    def _align_heading(self, fix: GnssFix, t_e: float, row: Array) -> None:
+        """First heading from HDT, or from the course at ``align_min_speed_mps`` (forward).
+
+        The INS yaw at ``t_e`` is turned onto the reference (history too, keeping the gyro
+        motion since), position and velocity are set from the fix, and P starts: position
+        from the fix sigma, velocity ``align_vel_sigma_mps``, tilt from the accelerometer
+        turn-on bias plus gyro drift since levelling, yaw from the reference, biases from the
+        turn-on sigmas (gyro from the rest mean if there was one).
+        """
+        sig_pos = self._position_sigma(fix)
+        vel = fix.vel_ne_mps
+        if sig_pos is None:
+            return
+        if fix.heading_rad is not None:
+            target, sig_yaw = fix.heading_rad, self.cfg.hdt_sigma_deg * DEG
+        elif vel is not None and math.hypot(*vel) >= self.cfg.align_min_speed_mps:
+            target, sig_yaw = math.atan2(vel[1], vel[0]), self.cfg.align_yaw_sigma_deg * DEG
+        else:
+            return
+        ins, hist, tun = self._ins, self._hist, self._tuning
+        assert ins is not None and hist is not None and tun is not None
+        c_e = row[_C].reshape(3, 3)
+        rot = exp_so3((0.0, 0.0, target - math.atan2(c_e[1, 0], c_e[0, 0])))
+        ins.rotate(rot)
+        hist.shift(np.zeros(3), np.zeros(3), rot)
+        row_aligned = hist.at(t_e)
+        assert row_aligned is not None
+        self._p = np.zeros((N_STATES, N_STATES))
+        self._set_from_fix(fix, t_e, row_aligned, sig_pos)
+        ins.take_interval()
+        sig_bg = self._levelled_gyro_bias_sigma_rps()
+        sig_ba = tun.sigma_bias_a0_mps2
+        sig_tilt = math.hypot(sig_bg * max(0.0, t_e - self._t_levelled_s), self._sigma_level_rad)
+        p = self._p
+        p[BA, BA] = sig_ba**2 * np.eye(3)
+        p[BG, BG] = sig_bg**2 * np.eye(3)
+        p[ATT, ATT] = np.diag([sig_tilt**2, sig_tilt**2, sig_yaw**2])
+        # Levelling on the mean specific force makes the tilt error and the accelerometer
+        # bias error one quantity: C dba = g (-phi_E, phi_N, .). Tilt = M dba + drift.
+        c_bn = ins.c_bn
+        m = np.zeros((3, 3))
+        m[0] = c_bn[1] / GRAVITY_MPS2
+        m[1] = -c_bn[0] / GRAVITY_MPS2
+        p[ATT, ATT] += sig_ba**2 * m @ m.T
+        p[ATT, BA] = sig_ba**2 * m
+        p[BA, ATT] = p[ATT, BA].T
+        self._last_quality = fix.quality
+        self._t_accepted_rx_s = fix.t
+
+    def _levelled_gyro_bias_sigma_rps(self) -> float:
+        """Gyro bias 1-sigma before the filter runs: the rest mean's, else the turn-on one."""
+        tun = self._tuning
+        assert tun is not None
+        if self._rest_bias_s > 0.0:
+            return math.sqrt(tun.q_gyro_rad2_per_s / self._rest_bias_s + EARTH_RATE_RPS**2)
+        return tun.sigma_bias_g0_rps
+
+    def _sigma_tilt_rad(self) -> float | None:
+        """Roll/pitch 1-sigma: from P once it runs; before, what levelling leaves (the
+        accelerometer bias over g, the window's motion, gyro bias drift since)."""
+        p, tun = self._p, self._tuning
+        if p is not None:
+            return math.sqrt(0.5 * (p[6, 6] + p[7, 7]))
+        if self._ins is None or tun is None or self._t_s is None:
+            return None
+        drift = self._levelled_gyro_bias_sigma_rps() * max(0.0, self._t_s - self._t_levelled_s)
+        return math.sqrt(
+            (tun.sigma_bias_a0_mps2 / GRAVITY_MPS2) ** 2 + self._sigma_level_rad**2 + drift**2
+        )
+
+    def _reset_from_fix(self, fix: GnssFix, t_e: float, row: Array, sig_pos: Array) -> None:
+        """Recovery after a long outage or a run of rejections: position/velocity from GNSS.
+
+        Attitude and biases are kept; position and velocity restart from the fix with their
+        cross-covariances dropped (the old ones described a state that was just replaced).
+        """
+        self.counters.resets += 1
+        log.warning(
+            "GNSS position at t=%.3f: position and velocity reset to it (%s)",
+            t_e,
+            "positions rejected" if self._track.rejecting_since_s is not None else "an outage",
+        )
+        self._set_from_fix(fix, t_e, row, sig_pos)
+        self._last_quality = fix.quality
+        self._t_accepted_rx_s = fix.t
+
+    def _set_from_fix(self, fix: GnssFix, t_e: float, row: Array, sig_pos: Array) -> None:
+        """INS position/velocity from the fix at ``t_e``, moved to now; P rows reset."""
+        ins, hist, p = self._ins, self._hist, self._p
+        assert ins is not None and hist is not None and p is not None and self._t_s is not None
+        c_e = row[_C].reshape(3, 3)
+        p_imu = self._antenna_ned(fix) - c_e @ self._l_imu_ant_b
+        vel = self._gnss_velocity(fix)
+        v_ne = vel[0] if vel is not None else np.zeros(2)
+        w_e = self._lever_rate(t_e)[0]
+        v_imu = np.array([v_ne[0], v_ne[1], 0.0]) - c_e @ np.cross(w_e, self._l_imu_ant_b)
+        age_s = self._t_s - t_e
+        p_now = p_imu + v_imu * age_s
+        dp = p_now - np.array(ins.p_ned_m)
+        dv = v_imu - np.array(ins.v_ned_mps)
+        ins.p_ned_m = [float(x) for x in p_now]
+        ins.v_ned_mps = [float(x) for x in v_imu]
+        hist.shift(dp, dv, np.eye(3))
+        for s in (POS, VEL):
+            p[s, :] = 0.0
+            p[:, s] = 0.0
+        p[POS, POS] = np.diag(sig_pos**2)
+        p[VEL, VEL] = self.cfg.align_vel_sigma_mps**2 * np.eye(3)
+        self._t_pos_epoch_s = t_e
+        self._track.accepted()
+
+    def _antenna_ned(self, fix: GnssFix) -> Array:
+        """Antenna position in the local NED frame (origin: the first position used)."""
+        assert fix.lat_deg is not None and fix.lon_deg is not None and fix.alt_m is not None
+        if self._frame is None:
+            self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
+        return np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
+
+    def _position_sigma(self, fix: GnssFix) -> Array | None:
+        """Position 1-sigma NED (3,): GST when sent, else the quality's default; scaled."""
+        sig = fix.position_sigma_m
+        if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or sig is None:
+            return None
+        return self.cfg.gnss_sigma_scale * np.maximum(np.array(sig), 1e-3)
+
+    def _gnss_velocity(self, fix: GnssFix) -> tuple[Array, float] | None:
+        """Horizontal antenna velocity (2,) and its 1-sigma, from SOG/COG.
+
+        Below ``COG_RELIABLE_SPEED_MPS`` (or without a course) the direction is unknown: the
+        measurement becomes v = 0 with SOG added to its sigma.
+        """
+        if fix.sog_mps is None or int(fix.quality) not in DEFAULT_GNSS_SIGMAS:
+            return None
+        sigma = max(self.cfg.gnss_vel_sigma_mps, DEFAULT_GNSS_SIGMAS[int(fix.quality)][2])
+        vel = fix.vel_ne_mps
+        if vel is None or fix.sog_mps < COG_RELIABLE_SPEED_MPS:
+            return np.zeros(2), math.hypot(sigma, fix.sog_mps)
+        return np.array(vel), sigma
+
+    def _update_motion_flags(self) -> None:
+        """Stationary and reversing from the reference-point body velocity (hysteresis)."""
+        ins = self._ins
+        assert ins is not None
+        w_b = np.array(ins.w_b_lp_rps)
+        v_ref_b = ins.c_bn.T @ np.array(ins.v_ned_mps) - np.cross(w_b, self._l_imu_b)
+        cfg = self.cfg
+        self._stationary = (
+            float(np.linalg.norm(v_ref_b)) < cfg.stationary_speed_mps
+            and float(np.linalg.norm(w_b)) < cfg.stationary_rate_dps * DEG
+        )
+        if v_ref_b[0] < -cfg.reverse_detect_speed_mps:
+            self._reversing = True
+        elif v_ref_b[0] > cfg.reverse_detect_speed_mps:
+            self._reversing = False
+
+    def _mark_bad(self, t: float) -> None:
+        if self._bad_since_s is None:
+            self._bad_since_s = t
+
+    # ========================================================================= read-out
+
+    @property
+    def origin_lla(self) -> Array | None:
+        """Origin (lat deg, lon deg, height m) of the local NED frame, None before a fix."""
+        return self._frame.origin_lla if self._frame is not None else None
+
+    def bias_sigma(self) -> tuple[Array, Array] | None:
+        """1-sigma of the gyro (rad/s) and accelerometer (m/s^2) bias estimates, (3,) each."""
+        if self._p is None:
+            return None
+        d = np.sqrt(np.diag(self._p))
+        return d[BG].copy(), d[BA].copy()
+
+    def navigation_covariance(self) -> Array | None:
+        """Covariance (9, 9) of the reference point's position, velocity and attitude error.
+
+        p_ref = p - C l_imu, v_ref = v - C (w x l_imu): J P J^T with the lever-arm Jacobian.
+        """
+        ins, p = self._ins, self._p
+        if ins is None or p is None:
+            return None
+        c_bn = ins.c_bn
+        w_b = np.array(ins.w_b_lp_rps)
+        j = np.zeros((9, N_STATES))
+        j[0:3, POS] = np.eye(3)
+        j[0:3, ATT] = skew(c_bn @ self._l_imu_b)
+        j[3:6, VEL] = np.eye(3)
+        j[3:6, ATT] = skew(c_bn @ np.cross(w_b, self._l_imu_b))
+        j[3:6, BG] = -c_bn @ skew(self._l_imu_b)
+        j[6:9, ATT] = np.eye(3)
+        return np.asarray(j @ p @ j.T)
+
+    def reference_state(self) -> tuple[Array, Array, Array] | None:
+        """Reference point NED position (3,), velocity (3,) and C_bn (3, 3); None if unknown."""
+        ins = self._ins
+        if ins is None or self._p is None:
+            return None
+        c_bn = ins.c_bn
+        w_b = np.array(ins.w_b_lp_rps)
+        p_ref = np.array(ins.p_ned_m) - c_bn @ self._l_imu_b
+        v_ref = np.array(ins.v_ned_mps) - c_bn @ np.cross(w_b, self._l_imu_b)
+        return p_ref, v_ref, c_bn
+
+    def solution(self) -> Solution:
+        """The current solution at the time of the last IMU sample."""
+        t = self._t_s if self._t_s is not None else 0.0
+        fix = self._last_fix
+        common = {
+            "fix_quality": fix.quality if fix is not None else None,
+            "num_sats": fix.num_sats if fix is not None else None,
+            "hdop": fix.hdop if fix is not None else None,
+            "age_s": fix.age_s if fix is not None else None,
+            "imu_alarm": self._imu_alarm,
+            "imu_ok": self._t_s is not None and self._bad_since_s is None,
+            "is_ekf": True,
+        }
+        ins = self._ins
+        if ins is None:
+            return Solution(t=t, mode=Mode.INITIALISING, **common)  # type: ignore[arg-type]
+        c_bn = ins.c_bn
+        roll, pitch, yaw = rpy_from_dcm(c_bn)
+        w_b = np.array(ins.w_b_lp_rps)
+        coasting_s = self._coasting_s()
+        mode = self._mode(coasting_s)
+        nav = self.reference_state()
+        lat = lon = alt = None
+        vel = None
+        if nav is not None and self._frame is not None and coasting_s <= self.cfg.max_coast_s:
+            lat, lon, alt = self._frame.to_lla(*(float(x) for x in nav[0]))
+            vel = (float(nav[1][0]), float(nav[1][1]), float(nav[1][2]))
+        sig = self.bias_sigma()
+        p = self._p
+        cfg = self.cfg
+        return Solution(
+            t=t,
+            mode=mode,
+            roll_rad=roll,
+            pitch_rad=pitch,
+            yaw_rad=yaw if p is not None else None,
+            yaw_rate_rps=float(c_bn[2] @ w_b),
+            lat_deg=lat,
+            lon_deg=lon,
+            alt_m=alt,
+            vel_ned_mps=vel,
+            bias_g_rps=np.array(ins.bias_g_rps),
+            bias_a_mps2=np.array(ins.bias_a_mps2),
+            sigma_tilt_rad=self._sigma_tilt_rad(),
+            gnss_ok=p is not None
+            and coasting_s == 0.0
+            and fix is not None
+            and fix.quality != FixQuality.NONE,
+            reversing=self._reversing,
+            stationary=self._stationary,
+            convergence=Convergence(
+                gyro_xy=sig is not None and max(sig[0][:2]) < cfg.gyro_xy_converged_dps * DEG,
+                gyro_z=sig is not None and sig[0][2] < cfg.gyro_z_converged_dps * DEG,
+                accel_xy=sig is not None and max(sig[1][:2]) < cfg.accel_xy_converged_mps2,
+                learning_frozen=p is None or coasting_s > 0.0,
+            ),
+            **common,  # type: ignore[arg-type]
+        )
+
+    def _coasting_s(self) -> float:
+        """Time without an accepted fix beyond ``gnss_timeout_s`` counts as coasting, else 0."""
+        if self._t_s is None or self._t_accepted_rx_s is None:
+            return 0.0
+        gap = self._t_s - self._t_accepted_rx_s
+        return gap if gap > self.cfg.gnss_timeout_s else 0.0
+
+    def _mode(self, coasting_s: float) -> Mode:
+        return navigation_mode(
+            fault=self._bad_since_s is not None
+            and (self._t_s is None or self._t_s - self._bad_since_s >= self.cfg.imu_alarm_fault_s),
+            aligned=self._p is not None,
+            coasting=coasting_s > 0.0,
+            imu_alarm=self._imu_alarm,
+            fix=self._last_fix,
+            navigating_fix_qualities=self.cfg.navigating_fix_qualities,
+            imu_gap=self._timing.degraded(),
+            gnss_glitch=self._track.rejecting_since_s is not None,
+        )

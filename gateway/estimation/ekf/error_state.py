@@ -1,0 +1,346 @@
+"""Loosely coupled GNSS/INS error-state EKF: strapdown, error propagation, measurement models.
+
+ALGORITHMS.md 3 (seed 002, Gu et al.) in the conventions of ALGORITHMS.md: NED navigation frame
+around a local origin, body FRD, g = [0, 0, +9.80665] NED, specific force f = a - g. The
+nominal state is the INS solution of the **IMU point** (the point whose specific force is
+measured, so no lever-arm acceleration terms enter the mechanisation); lever arms to the
+antenna and to the reference point appear only in the measurement models and the read-out.
+
+Earth rate and transport rate are dropped (seed 002's F_pp, F_vp, F_phi_p, Coriolis terms):
+7.3e-5 rad/s of Earth rate is an attitude drift of 0.004 deg/s, below the ADIS16334's gyro
+noise (ARW 2 deg/sqrt(h) = 0.033 deg/s over 1 s) and well below its turn-on bias (0.1 deg/s),
+which the filter estimates anyway; transport rate at 5 m/s is v/R = 8e-7 rad/s; the Coriolis
+acceleration 2 w_ie v = 7e-4 m/s^2 at 5 m/s is below the accelerometer bias being estimated.
+Gravity is constant over a field.
+
+Error state (15, :data:`POS` ... :data:`BG`), true = nominal + error, except attitude:
+C_bn_true = (I + [phi]x) C_bn, phi a small rotation in NED. Continuous error dynamics
+
+    d(dp)/dt = dv
+    d(dv)/dt = -[f_n]x phi - C_bn dba - C_bn n_a
+    d(phi)/dt = -C_bn dbg - C_bn n_g
+    d(dba)/dt = w_ba,   d(dbg)/dt = w_bg   (random walks: see EkfTuning)
+
+Measurement models return a :class:`Measurement` (z, H, R) as in pyins; :func:`correct`
+does the algebra for any of them (sequential, Joseph form, NIS gate).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass
+from functools import cache
+
+import numpy as np
+import numpy.typing as npt
+from scipy.stats import chi2, norm
+
+from gateway.estimation.attitude import (
+    Mat9,
+    dcm_mul,
+    exp_so3,
+    exp_so3_2nd,
+    from_mat9,
+    orthonormalise,
+    skew,
+    to_mat9,
+    wrap_pi,
+)
+from gateway.estimation.ekf.ekf_config import EkfTuning
+from gateway.estimation.observer.observer_config import GRAVITY_MPS2
+
+Array = npt.NDArray[np.float64]
+Floats = Sequence[float] | Array  # a 3-vector as list, tuple or array
+
+# --- error-state layout -------------------------------------------------------------------
+POS = slice(0, 3)  # position error, NED, m
+VEL = slice(3, 6)  # velocity error, NED, m/s
+ATT = slice(6, 9)  # attitude error phi, NED, rad
+BA = slice(9, 12)  # accelerometer bias error, body, m/s^2
+BG = slice(12, 15)  # gyro bias error, body, rad/s
+N_STATES = 15
+
+#: Low-pass time constant of the body rate used for lever-arm velocities at the current time:
+#: one sample of ARW noise is 0.5 deg/s, 2.5 cm/s at a 3 m lever arm.
+RATE_LP_TAU_S = 0.05
+#: Samples between re-orthonormalisations of the DCM (second-order exp drifts O(dphi^3)).
+ORTHO_EVERY = 256
+
+_I3 = np.eye(3)
+_I15 = np.eye(N_STATES)
+
+
+@cache
+def nis_gate(gate_sigma: float, dof: int) -> float:
+    """Chi-square threshold with the tail probability of a ``gate_sigma`` normal event."""
+    return float(chi2.isf(2.0 * norm.sf(gate_sigma), dof))
+
+
+@dataclass(frozen=True, slots=True)
+class Measurement:
+    """One measurement linearised about the nominal state: z = H dx + v, v ~ N(0, R).
+
+    ``z`` shape (m,) innovation (measured minus predicted), ``h`` shape (m, 15), ``r`` (m, m).
+    """
+
+    name: str
+    z: Array
+    h: Array
+    r: Array
+
+
+@dataclass(frozen=True, slots=True)
+class Correction:
+    """Outcome of :func:`correct`: normalised innovation squared and whether it passed."""
+
+    name: str
+    nis: float
+    accepted: bool
+
+
+def correct(p: Array, dx: Array, m: Measurement, gate_sigma: float) -> Correction:
+    """Fuse ``m`` into the error state ``dx`` (15,) and covariance ``p`` (15, 15), in place.
+
+    Sequential form: the innovation is taken relative to the error already estimated in this
+    batch (z - H dx), so several measurements of one epoch share one feedback. Rejected if
+    the normalised innovation squared exceeds :func:`nis_gate`. Joseph form, symmetrised.
+    """
+    z = m.z - m.h @ dx
+    ph = p @ m.h.T
+    s = m.h @ ph + m.r
+    s_inv = np.linalg.inv(s)
+    nis = float(z @ s_inv @ z)
+    if not nis <= nis_gate(gate_sigma, len(z)):
+        return Correction(m.name, nis, False)
+    k = ph @ s_inv
+    dx += k @ z
+    ikh = _I15 - k @ m.h
+    p[:] = ikh @ p @ ikh.T + k @ m.r @ k.T
+    p[:] = 0.5 * (p + p.T)
+    return Correction(m.name, nis, True)
+
+
+# --- strapdown mechanisation ---------------------------------------------------------------
+
+
+class Strapdown:
+    """INS nominal state of the IMU point and the IMU-interval sums that drive :func:`predict`.
+
+    Per sample (:meth:`propagate`, plain floats: this is the per-sample hot path): bias-
+    corrected rate and specific force, velocity increment rotated to NED with the first-order
+    rotation correction C (dv_b + dtheta x dv_b / 2), trapezoidal position, DCM update by the
+    second-order exponential, periodic re-orthonormalisation.
+    """
+
+    def __init__(
+        self,
+        c_bn: npt.ArrayLike,
+        p_ned_m: Sequence[float] = (0.0, 0.0, 0.0),
+        v_ned_mps: Sequence[float] = (0.0, 0.0, 0.0),
+    ) -> None:
+        self.c_bn9: Mat9 = to_mat9(c_bn)
+        self.p_ned_m = [float(x) for x in p_ned_m]
+        self.v_ned_mps = [float(x) for x in v_ned_mps]
+        self.bias_a_mps2 = [0.0, 0.0, 0.0]  # body FRD
+        self.bias_g_rps = [0.0, 0.0, 0.0]  # body FRD
+        self.w_b_rps = (0.0, 0.0, 0.0)  # last bias-corrected body rate
+        self.w_b_lp_rps = (0.0, 0.0, 0.0)  # the same low-passed (RATE_LP_TAU_S): lever arms
+        self._n = 0
+        # sums over the current covariance interval
+        self.sum_dt_s = 0.0
+        self.sum_dv_ned_mps = [0.0, 0.0, 0.0]  # integral of f_n dt
+        self.sum_c_dt = [0.0] * 9  # integral of C_bn dt, row major
+
+    @property
+    def c_bn(self) -> Array:
+        """C_b^n, shape (3, 3)."""
+        return from_mat9(self.c_bn9)
+
+    def propagate(self, w_ib_b: Floats, f_ib_b: Floats, dt: float) -> None:
+        """Advance the nominal state by one IMU sample (rates rad/s, specific force m/s^2)."""
+        bg, ba = self.bias_g_rps, self.bias_a_mps2
+        wx, wy, wz = w_ib_b[0] - bg[0], w_ib_b[1] - bg[1], w_ib_b[2] - bg[2]
+        fx, fy, fz = f_ib_b[0] - ba[0], f_ib_b[1] - ba[1], f_ib_b[2] - ba[2]
+        self.w_b_rps = (wx, wy, wz)
+        a = dt / (RATE_LP_TAU_S + dt)
+        lx, ly, lz = self.w_b_lp_rps
+        self.w_b_lp_rps = (lx + a * (wx - lx), ly + a * (wy - ly), lz + a * (wz - lz))
+        ax, ay, az = wx * dt, wy * dt, wz * dt
+        dvx = (fx + 0.5 * (ay * fz - az * fy)) * dt
+        dvy = (fy + 0.5 * (az * fx - ax * fz)) * dt
+        dvz = (fz + 0.5 * (ax * fy - ay * fx)) * dt
+        c = self.c_bn9
+        dvn = c[0] * dvx + c[1] * dvy + c[2] * dvz
+        dve = c[3] * dvx + c[4] * dvy + c[5] * dvz
+        dvd = c[6] * dvx + c[7] * dvy + c[8] * dvz
+        v, p = self.v_ned_mps, self.p_ned_m
+        vn0, ve0, vd0 = v
+        v[0] = vn0 + dvn
+        v[1] = ve0 + dve
+        v[2] = vd0 + dvd + GRAVITY_MPS2 * dt
+        p[0] += 0.5 * (vn0 + v[0]) * dt
+        p[1] += 0.5 * (ve0 + v[1]) * dt
+        p[2] += 0.5 * (vd0 + v[2]) * dt
+        s = self.sum_dv_ned_mps
+        s[0] += dvn
+        s[1] += dve
+        s[2] += dvd
+        sc = self.sum_c_dt
+        for i in range(9):
+            sc[i] += c[i] * dt
+        self.sum_dt_s += dt
+        c = dcm_mul(c, exp_so3_2nd(ax, ay, az))
+        self._n += 1
+        if self._n % ORTHO_EVERY == 0:
+            c = to_mat9(orthonormalise(from_mat9(c)))
+        self.c_bn9 = c
+
+    def take_interval(self) -> tuple[float, Array, Array]:
+        """(T, integral of f_n dt (3,), integral of C_bn dt (3, 3)) since the last call."""
+        out = (self.sum_dt_s, np.array(self.sum_dv_ned_mps), np.array(self.sum_c_dt).reshape(3, 3))
+        self.sum_dt_s = 0.0
+        self.sum_dv_ned_mps = [0.0, 0.0, 0.0]
+        self.sum_c_dt = [0.0] * 9
+        return out
+
+    def inject(self, dx: Array) -> Array:
+        """Closed-loop feedback of the error estimate ``dx`` (15,); returns the rotation (3, 3).
+
+        Position, velocity and biases add; attitude is reset by the small rotation
+        C <- exp([phi]x) C. The error state is then zero by definition (the caller drops dx);
+        the reset Jacobian I - [phi/2]x of the covariance is taken as I (phi ~ mrad).
+        """
+        for i in range(3):
+            self.p_ned_m[i] += float(dx[POS][i])
+            self.v_ned_mps[i] += float(dx[VEL][i])
+            self.bias_a_mps2[i] += float(dx[BA][i])
+            self.bias_g_rps[i] += float(dx[BG][i])
+        rot = exp_so3(dx[ATT])
+        self.c_bn9 = to_mat9(rot @ self.c_bn)
+        return rot
+
+    def rotate(self, rot: Array) -> None:
+        """Turn the attitude by ``rot`` (3, 3) in NED: C <- rot C (alignment of heading)."""
+        self.c_bn9 = to_mat9(rot @ self.c_bn)
+
+
+# --- error-state propagation ---------------------------------------------------------------
+
+
+def transition_matrix(t_s: float, dv_f_ned_mps: Array, c_dt: Array) -> Array:
+    """Phi (15, 15) over an interval T from the IMU sums of :meth:`Strapdown.take_interval`.
+
+    A = F T with F averaged over the interval (f_n T = integral f_n dt, C T = integral C dt);
+    A^4 = 0 (the chain bg -> phi -> v -> p is three long), so I + A + A^2/2 + A^3/6 is
+    exp(A) exactly for the averaged F. Averaging F over up to ~50 ms instead of stepping it at
+    every sample is checked in tests/test_ekf.py and by the `ekf-cov-every-sample` engine of
+    benchmarks/accuracy.py.
+    """
+    a = np.zeros((N_STATES, N_STATES))
+    a[POS, VEL] = t_s * _I3
+    a[VEL, ATT] = -skew(dv_f_ned_mps)
+    a[VEL, BA] = -c_dt
+    a[ATT, BG] = -c_dt
+    a2 = a @ a
+    return _I15 + a + 0.5 * a2 + (a2 @ a) / 6.0
+
+
+def process_noise_psd(tuning: EkfTuning) -> Array:
+    """Diagonal continuous process noise Q_c (15,) of the error state.
+
+    White accel/gyro noise enters dv and phi through C_bn; being isotropic, C q I C^T = q I.
+    """
+    q = np.zeros(N_STATES)
+    q[VEL] = tuning.q_accel_m2_per_s3
+    q[ATT] = tuning.q_gyro_rad2_per_s
+    q[BA] = tuning.q_bias_a_m2_per_s5
+    q[BG] = tuning.q_bias_g_rad2_per_s3
+    return q
+
+
+def predict(p: Array, phi: Array, q_c: Array, t_s: float) -> None:
+    """P <- Phi P Phi^T + Q_d in place, Q_d = (Phi Q_c Phi^T + Q_c) T / 2 (trapezoid)."""
+    q_d = 0.5 * t_s * ((phi * q_c) @ phi.T + np.diag(q_c))
+    p[:] = phi @ p @ phi.T + q_d
+    p[:] = 0.5 * (p + p.T)
+
+
+# --- measurement models --------------------------------------------------------------------
+
+
+def fuse_position(
+    p_ned_m: Array, c_bn: Array, l_ant_b: Array, p_ant_meas_ned_m: Array, sigma_ned_m: Array
+) -> Measurement:
+    """Antenna position: p_ant = p + C l, l = antenna relative to the IMU (body, m).
+
+    Shapes (3,) except ``c_bn`` (3, 3). dp_ant = dp - [C l]x phi.
+    """
+    c_l = c_bn @ l_ant_b
+    h = np.zeros((3, N_STATES))
+    h[:, POS] = _I3
+    h[:, ATT] = -skew(c_l)
+    return Measurement("position", p_ant_meas_ned_m - (p_ned_m + c_l), h, np.diag(sigma_ned_m**2))
+
+
+def fuse_velocity(
+    v_ned_mps: Array,
+    c_bn: Array,
+    w_b_rps: Array,
+    l_ant_b: Array,
+    v_ant_meas_ne_mps: Array,
+    sigma_mps: float,
+) -> Measurement:
+    """Antenna horizontal velocity (north, east) from SOG/COG: v_ant = v + C (w x l).
+
+    NMEA RMC/VTG carry no vertical velocity; the vertical channel is observed through height.
+    dv_ant = dv - [C (w x l)]x phi + C [l]x dbg (the rate error is -dbg). ``v_ant_meas_ne_mps``
+    shape (2,).
+    """
+    v_lever = c_bn @ np.cross(w_b_rps, l_ant_b)
+    h = np.zeros((3, N_STATES))
+    h[:, VEL] = _I3
+    h[:, ATT] = -skew(v_lever)
+    h[:, BG] = c_bn @ skew(l_ant_b)
+    z = v_ant_meas_ne_mps - (v_ned_mps + v_lever)[:2]
+    return Measurement("velocity", z, h[:2], sigma_mps**2 * np.eye(2))
+
+
+def fuse_nonholonomic(
+    v_ned_mps: Array, c_bn: Array, w_b_rps: Array, l_ref_b: Array, sigma_mps: float
+) -> Measurement:
+    """Zero lateral and vertical body velocity of the reference point (land vehicle).
+
+    v_ref_b = C^T v + w x l, l = reference point relative to the IMU (body). Holds driving
+    forwards, reversing (only the longitudinal component changes sign) and at rest.
+    d(v_ref_b) = C^T dv + C^T [v]x phi + [l]x dbg.
+    """
+    c_nb = c_bn.T
+    v_ref_b = c_nb @ v_ned_mps + np.cross(w_b_rps, l_ref_b)
+    h = np.zeros((3, N_STATES))
+    h[:, VEL] = c_nb
+    h[:, ATT] = c_nb @ skew(v_ned_mps)
+    h[:, BG] = skew(l_ref_b)
+    return Measurement("nonholonomic", -v_ref_b[1:], h[1:], sigma_mps**2 * np.eye(2))
+
+
+def fuse_heading(c_bn: Array, heading_meas_rad: float, sigma_rad: float) -> Measurement:
+    """True heading (HDT, dual antenna along body x): yaw = atan2(C10, C00).
+
+    d(yaw) = phi_D - C20 (C00 phi_N + C10 phi_E) / (C00^2 + C10^2).
+    """
+    c00, c10, c20 = float(c_bn[0, 0]), float(c_bn[1, 0]), float(c_bn[2, 0])
+    d = c00 * c00 + c10 * c10
+    h = np.zeros((1, N_STATES))
+    h[0, ATT] = (-c20 * c00 / d, -c20 * c10 / d, 1.0)
+    z = np.array([wrap_pi(heading_meas_rad - math.atan2(c10, c00))])
+    return Measurement("heading", z, h, np.array([[sigma_rad**2]]))
+
+
+def attitude_error(c_bn_true: Array, c_bn_est: Array) -> Array:
+    """phi (3,) with C_true = exp([phi]x) C_est: the filter's attitude error convention."""
+    d = c_bn_true @ c_bn_est.T
+    angle = math.acos(max(-1.0, min(1.0, 0.5 * (float(np.trace(d)) - 1.0))))
+    axis = np.array([d[2, 1] - d[1, 2], d[0, 2] - d[2, 0], d[1, 0] - d[0, 1]])
+    s = math.sin(angle)
+    return 0.5 * axis if s < 1e-9 else 0.5 * angle / s * axis

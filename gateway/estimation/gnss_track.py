@@ -1,0 +1,70 @@
+"""Is the receiver's own track continuous? Tells a GNSS glitch from an engine that is off.
+
+When an engine's position disagrees with the GNSS for several epochs, one of them is wrong.
+A position glitch (multipath, a wrong fix) makes the receiver's track jump: its position
+leaves where its own velocity was taking it. An engine that is off (after an outage, or
+starved of epochs on a busy host) disagrees with a track that is continuous. The engines
+reject positions beyond their gate for a long time (``position_reset_s``) only after a jump,
+and reset to a continuous track after a few epochs (``reset_rejections``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+#: Epochs further apart than this are not compared (an outage: no continuity to judge).
+MAX_STEP_S = 2.0
+
+
+@dataclass
+class GnssTrack:
+    """The last antenna position and velocity the receiver gave (local NE, m, m/s)."""
+
+    jump_sigma: float = 5.0  # a jump is beyond this many sigma of two independent positions
+    jump_floor_m: float = 0.5  # plus this (velocity over the step, receiver smoothing)
+    jumped_at_s: float | None = None  # epoch time of the last jump
+    rejecting_since_s: float | None = None  # epoch time the engine began to reject positions
+    rejections: int = 0  # consecutive positions the engine rejected
+    _last: tuple[float, float, float, float, float] | None = None  # t, n, e, vn, ve
+
+    def add(
+        self, t_s: float, p_ne_m: tuple[float, float], v_ne_mps: tuple[float, float] | None,
+        sigma_h_m: float,
+    ) -> None:  # fmt: skip
+        """Compare one epoch with where the last one's velocity (and its own) led."""
+        vn, ve = v_ne_mps if v_ne_mps is not None else (math.nan, math.nan)
+        last = self._last
+        if last is not None and 0.0 < t_s - last[0] <= MAX_STEP_S and math.isfinite(vn + ve):
+            dt = t_s - last[0]
+            pred_n = last[1] + 0.5 * (last[3] + vn) * dt
+            pred_e = last[2] + 0.5 * (last[4] + ve) * dt
+            off_m = math.hypot(p_ne_m[0] - pred_n, p_ne_m[1] - pred_e)
+            if off_m > self.jump_sigma * math.sqrt(2.0) * sigma_h_m + self.jump_floor_m:
+                self.jumped_at_s = t_s
+        self._last = (t_s, p_ne_m[0], p_ne_m[1], vn, ve)
+
+    def jumped_since(self, t_s: float) -> bool:
+        """Did the track jump at or after ``t_s``?"""
+        return self.jumped_at_s is not None and self.jumped_at_s >= t_s
+
+    def rejected(self, t_s: float) -> None:
+        """The engine rejected the position of epoch ``t_s``."""
+        if self.rejecting_since_s is None:
+            self.rejecting_since_s = t_s
+        self.rejections += 1
+
+    def accepted(self) -> None:
+        """The engine used a position (or reset to one): the run of rejections ends."""
+        self.rejecting_since_s, self.rejections = None, 0
+
+    def reset_due(self, t_s: float, reset_rejections: int, position_reset_s: float) -> bool:
+        """Should the engine take the GNSS position at ``t_s`` however far it is? After
+        ``reset_rejections`` of a continuous track (the engine is off), or after
+        ``position_reset_s`` of rejections that began with a jump (it moved for good)."""
+        since = self.rejecting_since_s
+        if since is None:
+            return False
+        if not self.jumped_since(since):
+            return self.rejections >= reset_rejections
+        return t_s - since >= position_reset_s

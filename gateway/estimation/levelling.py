@@ -1,0 +1,66 @@
+"""What a levelling window cannot see: the vehicle's own acceleration.
+
+Roll and pitch from the mean specific force over a window take the window's mean horizontal
+acceleration ``a`` for tilt, an error of about ``a / g`` rad (0.84 m/s^2 of a tractor pulling
+away is 4.9 deg). The gyro cannot tell: driving straight while speeding up is "quiet". GNSS
+velocity measures that mean acceleration in any frame, ``(v_last - v_first) / (t_last -
+t_first)``, so :class:`WindowMotion` collects the velocities of fixes received during the
+window and turns them into the 1-sigma the levelled tilt carries. Engines add it to their
+roll/pitch sigma, so NAVGW_STATUS states it and the output guard withholds roll and pitch
+until the estimator has corrected them (an engine restarted while the vehicle drives, after
+a host stall, levels on a moving window).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from drivers.samples import GnssFix
+from gateway.estimation.observer.observer_config import GRAVITY_MPS2
+
+#: Tilt 1-sigma of a window levelled while moving with fewer than two GNSS velocities in it
+#: (1 Hz GNSS, a lost fix): 2 m/s^2, hard braking or pulling away of a farm vehicle, over g.
+UNKNOWN_MOTION_TILT_RAD = math.atan(2.0 / GRAVITY_MPS2)
+
+
+@dataclass
+class WindowMotion:
+    """GNSS velocities seen while one levelling window fills (receive-time clock, s)."""
+
+    vel_sigma_mps: float  # horizontal GNSS velocity 1-sigma per axis
+    stationary_speed_mps: float  # below this speed the vehicle is at rest
+    _first: tuple[float, float, float] | None = None  # t, vN, vE
+    _last: tuple[float, float, float] | None = None
+    _moving: bool = False
+
+    def restart(self) -> None:
+        """A new window begins: forget the velocities of the last one."""
+        self._first = self._last = None
+        self._moving = False
+
+    def add(self, fix: GnssFix) -> None:
+        """Note the fix's velocity if it has one (SOG/COG)."""
+        vel = fix.vel_ne_mps
+        if vel is None or not math.isfinite(vel[0] + vel[1] + fix.t):
+            return
+        self._moving |= math.hypot(*vel) >= self.stationary_speed_mps
+        self._last = (fix.t, vel[0], vel[1])
+        if self._first is None:
+            self._first = self._last
+
+    def tilt_sigma_rad(self) -> float:
+        """1-sigma tilt error the window's motion causes: 0 at rest (or before any GNSS
+        velocity, when a gateway powers up with its parked vehicle), ``a / g`` plus the
+        velocity noise of the difference when moving, :data:`UNKNOWN_MOTION_TILT_RAD` when
+        moving without two velocities to difference."""
+        if not self._moving:
+            return 0.0
+        first, last = self._first, self._last
+        assert first is not None and last is not None
+        span_s = last[0] - first[0]
+        if span_s <= 0.0:
+            return UNKNOWN_MOTION_TILT_RAD
+        dv_mps = math.hypot(last[1] - first[1], last[2] - first[2])
+        accel_mps2 = (dv_mps + math.sqrt(2.0) * self.vel_sigma_mps) / span_s
+        return math.atan(accel_mps2 / GRAVITY_MPS2)

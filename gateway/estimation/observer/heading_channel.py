@@ -1,0 +1,278 @@
+"""Heading channel and z-gyro bias Kalman filter (ALGORITHMS.md section 2, seed 001).
+
+The yaw of the platform DCM is propagated by the gyros; per GNSS epoch it is pulled toward the
+best heading reference available (smallest 1-sigma): HDT at any speed, the course of the
+reference point (lever-arm corrected) at speed, or a configured AB-line bearing while driving
+along it. Reversing (course about 180 deg from heading) is detected with hysteresis and then the
+reversed course is the reference, so there is no 180 deg jump and no backwards pull.
+
+The correction is a vertical control rate w_pz = K r / T, r = psi_hat - psi_ref, applied to
+the DCM by the observer over the next interval T. K is the gain of a scalar Kalman filter of
+the heading error: its variance grows with the gyro's ARW (ARW^2 T) and the z-bias
+uncertainty ((sigma_bz gap)^2), and each reference shrinks it by its sigma (COG: sigma_v /
+speed, so 0.4 deg at 3 m/s and 1.1 deg at 1 m/s). In steady state this is a time constant
+sigma_ref sqrt(T) / ARW (COG at 3 m/s: 3.6 s, at 1 m/s: 11 s) instead of a fixed 2 s that let
+the COG noise of low speed straight into the heading; after alignment or a long gap it is
+fast. K never exceeds T / ``tau_heading_s`` (the rate is applied one epoch late).
+
+The z-gyro bias follows seed 001: the heading drift the gyro would have had without
+correction over an interval T, (r1 - r0 + integral of w_pz) / T, is an observation of the
+residual bias (about the vertical; divided by C[2,2] for the body z axis) and feeds a scalar
+Kalman filter with F = 1, H = 1, small process noise. At rest the mean bias-corrected z rate
+over a window is a direct observation of the residual bias (zero-rate update,
+:meth:`HeadingChannel.observe_zero_rate`), with variance ARW^2 / T.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from enum import Enum
+
+from gateway.estimation.attitude import wrap_pi
+from gateway.estimation.observer.observer_config import ObserverConfig
+
+DEG = math.pi / 180.0
+
+#: Course-vs-heading difference above which the vehicle is reversing, below which forward.
+REVERSE_ENTER_RAD = 135.0 * DEG
+REVERSE_LEAVE_RAD = 45.0 * DEG
+
+
+class HeadingSource(Enum):
+    """Where a heading reference came from."""
+
+    HDT = "hdt"
+    COG = "cog"
+    COG_REVERSED = "cog_reversed"
+    AB_LINE = "ab_line"
+
+
+@dataclass(frozen=True, slots=True)
+class HeadingReference:
+    """One heading observation: true heading (rad), its 1-sigma (rad) and source."""
+
+    psi_rad: float
+    sigma_rad: float
+    source: HeadingSource
+
+
+@dataclass(frozen=True, slots=True)
+class HeadingCorrection:
+    """What the observer applies: vertical control rate (rad/s) and a direct yaw step (rad)."""
+
+    w_pz_rps: float = 0.0
+    step_rad: float = 0.0
+
+
+class GyroZBiasKf:
+    """Scalar Kalman filter of seed 001: x = z gyro bias (rad/s), F = 1, H = 1."""
+
+    def __init__(self, sigma0_rps: float, walk_rps_per_sqrt_s: float) -> None:
+        self.x_rps = 0.0
+        self.p_rps2 = sigma0_rps**2
+        self.q_rps2_per_s = walk_rps_per_sqrt_s**2
+
+    def predict(self, dt_s: float) -> None:
+        """Random-walk bias: P += Q dt."""
+        self.p_rps2 += self.q_rps2_per_s * dt_s
+
+    def update(self, innovation_rps: float, r_rps2: float) -> None:
+        """Fuse an observation z with z - x = ``innovation_rps`` and variance ``r_rps2``."""
+        k = self.p_rps2 / (self.p_rps2 + r_rps2)
+        self.x_rps += k * innovation_rps
+        self.p_rps2 *= 1.0 - k
+
+    @property
+    def sigma_rps(self) -> float:
+        """1-sigma of the bias estimate, rad/s."""
+        return math.sqrt(self.p_rps2)
+
+
+@dataclass
+class _BiasWindow:
+    """Start of the current heading-residual interval for one bias observation."""
+
+    t_s: float
+    r_rad: float
+    hc_rad: float  # cumulative applied heading correction at t_s
+    sigma_rad: float
+    source: HeadingSource
+
+
+class HeadingChannel:
+    """Selects heading references, produces the heading control rate, estimates z-gyro bias."""
+
+    def __init__(self, cfg: ObserverConfig) -> None:
+        self.cfg = cfg
+        self.kf = GyroZBiasKf(
+            cfg.gyro_z_bias_sigma0_dps * DEG, cfg.gyro_z_bias_walk_dps_per_sqrt_s * DEG
+        )
+        self.reversing = False
+        self._t_kf_s: float | None = None
+        self._window: _BiasWindow | None = None
+        self._ab_dwell_since_s: float | None = None
+        self._rejected_since_s: float | None = None
+        self._t_last_s: float | None = None  # previous correction epoch
+        self._p_psi_rad2 = math.pi**2  # heading error variance (unknown until aligned)
+
+    # ------------------------------------------------------------------ reference choice
+
+    def select_reference(
+        self,
+        t_s: float,
+        psi_hat_rad: float,
+        cog_ref_rad: float | None,
+        speed_ref_mps: float,
+        hdt_rad: float | None,
+        yaw_rate_rps: float,
+        stationary: bool,
+    ) -> HeadingReference | None:
+        """Best heading reference at epoch ``t_s`` (smallest sigma), or None: hold on gyro.
+
+        ``cog_ref_rad`` and ``speed_ref_mps`` are of the reference point (lever-arm
+        corrected); ``psi_hat_rad`` is the platform heading at the same instant.
+        """
+        cfg = self.cfg
+        candidates: list[HeadingReference] = []
+        if hdt_rad is not None:
+            candidates.append(HeadingReference(hdt_rad, cfg.hdt_sigma_deg * DEG, HeadingSource.HDT))
+        if stationary:
+            self.reversing = False
+        elif cog_ref_rad is not None and speed_ref_mps > cfg.reverse_detect_speed_mps:
+            d = abs(wrap_pi(psi_hat_rad - cog_ref_rad))
+            if d > REVERSE_ENTER_RAD:
+                self.reversing = True
+            elif d < REVERSE_LEAVE_RAD:
+                self.reversing = False
+            in_band = d > REVERSE_ENTER_RAD if self.reversing else d < REVERSE_LEAVE_RAD
+            if in_band and speed_ref_mps > cfg.cog_min_speed_mps:
+                sigma = cfg.gnss_vel_sigma_mps / speed_ref_mps
+                if self.reversing:
+                    psi = (cog_ref_rad + math.pi) % (2.0 * math.pi)
+                    candidates.append(HeadingReference(psi, sigma, HeadingSource.COG_REVERSED))
+                else:
+                    candidates.append(HeadingReference(cog_ref_rad, sigma, HeadingSource.COG))
+        ab = self._ab_line_reference(t_s, psi_hat_rad, yaw_rate_rps, stationary)
+        if ab is not None:
+            candidates.append(ab)
+        return min(candidates, key=lambda c: c.sigma_rad) if candidates else None
+
+    def _ab_line_reference(
+        self, t_s: float, psi_hat_rad: float, yaw_rate_rps: float, stationary: bool
+    ) -> HeadingReference | None:
+        """The AB-line bearing (either direction) after a dwell along it, else None."""
+        cfg = self.cfg
+        if cfg.ab_line_bearing_deg is None:
+            return None
+        bearing = cfg.ab_line_bearing_deg * DEG
+        if abs(wrap_pi(psi_hat_rad - bearing)) > math.pi / 2:
+            bearing = (bearing + math.pi) % (2.0 * math.pi)
+        along = (
+            not stationary
+            and abs(wrap_pi(psi_hat_rad - bearing)) < cfg.ab_line_window_deg * DEG
+            and abs(yaw_rate_rps) < cfg.ab_line_max_rate_dps * DEG
+        )
+        if not along:
+            self._ab_dwell_since_s = None
+            return None
+        if self._ab_dwell_since_s is None:
+            self._ab_dwell_since_s = t_s
+        if t_s - self._ab_dwell_since_s < cfg.ab_line_min_time_s:
+            return None
+        return HeadingReference(
+            bearing % (2.0 * math.pi), cfg.ab_line_sigma_deg * DEG, HeadingSource.AB_LINE
+        )
+
+    # ---------------------------------------------------------------------- correction
+
+    def correct(
+        self,
+        t_s: float,
+        psi_hat_rad: float,
+        ref: HeadingReference | None,
+        hc_rad: float,
+        c22: float,
+        learn: bool,
+    ) -> HeadingCorrection:
+        """Heading correction for epoch ``t_s``; also one z-bias KF step per full interval.
+
+        ``psi_hat_rad`` is the platform heading at ``t_s``, ``hc_rad`` the cumulative heading
+        correction applied up to ``t_s`` (integral of w_pz), ``c22`` = C[2, 2] (body z vs
+        vertical). ``learn`` False (gates closed) restarts the bias interval.
+        """
+        interval_s = 0.0 if self._t_last_s is None else t_s - self._t_last_s
+        self._t_last_s = t_s
+        self._predict_heading_variance(interval_s)
+        if ref is None:
+            self._window = None
+            self._rejected_since_s = None
+            return HeadingCorrection()
+        r = wrap_pi(psi_hat_rad - ref.psi_rad)
+        if abs(r) > self.cfg.heading_gate_deg * DEG:
+            self._window = None
+            if self._rejected_since_s is None:
+                self._rejected_since_s = t_s
+            if t_s - self._rejected_since_s >= self.cfg.heading_realign_s:
+                self._rejected_since_s = None
+                self.aligned(ref.sigma_rad)
+                return HeadingCorrection(step_rad=-r)
+            return HeadingCorrection()
+        self._rejected_since_s = None
+        if learn:
+            self._observe_bias(t_s, r, hc_rad, ref, c22)
+        else:
+            self._window = None
+        if not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
+            return HeadingCorrection(w_pz_rps=r / self.cfg.tau_heading_s)
+        return HeadingCorrection(w_pz_rps=r * self._gain(ref.sigma_rad, interval_s) / interval_s)
+
+    def _gain(self, sigma_ref_rad: float, interval_s: float) -> float:
+        """Kalman gain of one heading reference (module docstring); updates the variance."""
+        k_max = interval_s / self.cfg.tau_heading_s
+        k = min(self._p_psi_rad2 / (self._p_psi_rad2 + sigma_ref_rad**2), k_max)
+        self._p_psi_rad2 *= 1.0 - k
+        return k
+
+    def _predict_heading_variance(self, gap_s: float) -> None:
+        """Heading error variance grows by ARW^2 gap + (sigma_bz gap)^2 without a reference."""
+        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        self._p_psi_rad2 += arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
+
+    def aligned(self, sigma_rad: float) -> None:
+        """Heading was just set directly (alignment, realignment) to a reference of
+        ``sigma_rad``: restart the bias interval and the heading variance."""
+        self._window = None
+        self._p_psi_rad2 = sigma_rad**2
+
+    def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> None:
+        """Zero-rate update at rest: the mean bias-corrected body z rate over ``window_s``
+        is the residual z bias, variance ARW^2 / window (engine vibration averages out)."""
+        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
+        self.kf.update(mean_w_z_rps, arw**2 / window_s)
+        self._t_kf_s = t_s
+
+    def _observe_bias(
+        self, t_s: float, r_rad: float, hc_rad: float, ref: HeadingReference, c22: float
+    ) -> None:
+        """Seed 001: residual bias = uncorrected heading drift over the interval / T."""
+        w = self._window
+        if w is None or w.source is not ref.source:
+            self._window = _BiasWindow(t_s, r_rad, hc_rad, ref.sigma_rad, ref.source)
+            return
+        interval_s = t_s - w.t_s
+        if interval_s < self.cfg.gyro_z_window_s:
+            return
+        drift_rps = (r_rad - w.r_rad + hc_rad - w.hc_rad) / interval_s
+        sigma_rad = max(w.sigma_rad, ref.sigma_rad)
+        r_rps2 = 2.0 * (sigma_rad / interval_s) ** 2 / c22**2
+        self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
+        self.kf.update(drift_rps / c22, r_rps2)
+        self._t_kf_s = t_s
+        self._window = _BiasWindow(t_s, r_rad, hc_rad, ref.sigma_rad, ref.source)
+
+    @property
+    def bg_z_rps(self) -> float:
+        """z-gyro bias estimate, body, rad/s."""
+        return self.kf.x_rps

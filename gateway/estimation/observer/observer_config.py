@@ -1,0 +1,91 @@
+"""Parameters of the observer engine: paper values (seed 000, seed 001) and product choices.
+
+Field names are snake_case and carry their unit so that the TOML keys read the same; degrees
+appear only here (the engine converts to SI once). Lever arms are body FRD, metres, relative
+to the vehicle reference point (SPEC 5).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from gateway.estimation.epoch_clock import EpochTime
+
+Vec3Tuple = tuple[float, float, float]
+
+GRAVITY_MPS2 = 9.80665  # ALGORITHMS.md conventions: g = [0, 0, +9.80665] in NED
+
+
+@dataclass(frozen=True)
+class ObserverConfig:
+    """Everything :class:`gateway.estimation.observer.observer_engine.ObserverEngine` can be tuned
+    with."""
+
+    # --- Tereshkov observer (seed 000, section 4 values) ---
+    tau_s: float = 4.0  # attitude correction time constant tau = 1/(k g)
+    tau_g_s: float = 40.0  # gyro bias observer time constant, eq. (11)
+    omega_a_dps: float = 45.0  # accelerometer bias observer rate constant, eq. (12)
+    estimate_biases: bool = True  # False: the "observer without bias estimation" baseline
+
+    # --- vehicle geometry (SPEC 5) ---
+    antenna_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # antenna rel. reference point, body
+    imu_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # IMU rel. reference point, body
+
+    # --- GNSS timing ---
+    epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock
+    receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
+    gnss_timeout_s: float = 1.5  # no usable velocity for this long (receive time): COASTING
+    max_gnss_interval_s: float = 1.2  # epochs further apart are not differenced (1 Hz fits)
+    max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
+    gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma (RTK carrier-phase Doppler)
+
+    # --- IMU noise (ADIS16334 datasheet): roll/pitch sigma, heading gain, bias at rest ---
+    gyro_arw_dps_per_sqrt_h: float = 2.0  # gyro angular random walk
+
+    # --- learning gates ---
+    learning_fix_qualities: tuple[int, ...] = (2, 4, 5)  # GGA DGNSS, RTK fixed, RTK float
+    navigating_fix_qualities: tuple[int, ...] = (4,)  # other usable qualities: DEGRADED
+    # a GNSS glitch: the velocity change over an epoch interval T disagrees with the
+    # platform's by more than glitch_sigma of the white GNSS velocity noise plus e_gate T
+    glitch_sigma: float = 5.0  # Rayleigh tail exp(-25/2): 4e-6 false alarms per epoch
+    e_gate_mps2: float = 1.0  # specific-force mismatch beyond noise: tilt at start, vibration
+    glitch_persist_s: float = 5.0  # glitches this long mean a tilted platform: e used, clipped
+    learning_holdoff_s: float = 8.0  # learning stays frozen this long after any gate (2 tau)
+    stationary_speed_mps: float = 0.1  # reference-point speed below this ...
+    stationary_rate_dps: float = 1.0  # ... and |w_b| below this: stationary
+
+    # --- initial alignment ---
+    align_quiet_rate_dps: float = 2.0  # |w| below this counts as straight or still
+    align_tilt_time_s: float = 1.0  # mean specific force over this long gives roll/pitch
+    align_min_speed_mps: float = 1.5  # first course over ground used at this speed
+
+    # --- heading channel (ALGORITHMS.md 2, seed 001) ---
+    tau_heading_s: float = 2.0  # shortest heading time constant (caps the heading KF gain)
+    cog_min_speed_mps: float = 1.0  # course over ground is a heading reference above this
+    reverse_detect_speed_mps: float = 0.3  # forward/reverse decided above this speed
+    heading_gate_deg: float = 10.0  # larger heading residuals are rejected (glitch)
+    heading_realign_s: float = 5.0  # after this long of rejected residuals, realign
+    hdt_sigma_deg: float = 0.2  # dual-antenna heading 1-sigma
+    ab_line_bearing_deg: float | None = None  # guidance line bearing, true, if known
+    ab_line_window_deg: float = 3.0  # heading within this of the line (either direction) ...
+    ab_line_max_rate_dps: float = 0.5  # ... with yaw rate below this ...
+    ab_line_min_time_s: float = 5.0  # ... for this long: the line is a heading reference
+    ab_line_sigma_deg: float = 0.5  # how well the driver/autosteer holds the line bearing
+    gyro_z_window_s: float = 5.0  # heading residual interval of one bias observation
+    gyro_z_bias_sigma0_dps: float = 0.3  # initial z-gyro bias 1-sigma (KF P0)
+    gyro_z_bias_walk_dps_per_sqrt_s: float = 5e-4  # bias random walk (KF Q)
+
+    # --- reference-point propagation ---
+    pos_blend_tau_s: float = 0.3  # GNSS position residual is blended in with this tau
+    # a position residual beyond glitch_sigma x the fix's horizontal sigma (GST, else the
+    # quality's default) plus position_gate_m is a glitch: rejected, dead reckoning meanwhile
+    position_gate_m: float = 0.5  # lever arm, attitude and latency errors of a working system
+    reset_rejections: int = 20  # positions of a continuous GNSS track rejected: reset to it
+    position_reset_s: float = 10.0  # rejected this long after a GNSS jump: it moved, reset
+
+    # --- convergence flags and roll/pitch sigma ---
+    gyro_bias_sigma0_dps: float = 0.3  # x/y gyro bias 1-sigma before learning
+    accel_bias_sigma0_mps2: float = 0.1  # x/y accel bias 1-sigma before learning
+    converged_time_constants: float = 3.0  # learning exponent for "converged" (e^-3 = 5 %)
+    gyro_z_converged_dps: float = 0.02  # KF 1-sigma for "z gyro bias converged"
+    imu_fault_s: float = 1.0  # invalid or saturated IMU data for this long: FAULT

@@ -1,0 +1,807 @@
+"""The observer engine: Tereshkov observer + heading channel + gates + reference-point navigation.
+
+Implements :class:`gateway.estimation.solution.Estimator`. Per IMU sample
+(:meth:`ObserverEngine.imu`):
+strapdown prediction of the platform DCM and biases (observer), then the reference-point
+velocity and position, then a time-stamped history row (running integral of f_p, platform
+heading, cumulative heading correction) so that a GNSS epoch arriving late can be compared with
+exactly the IMU interval it describes. Per GNSS epoch (:meth:`ObserverEngine.gnss`): epoch time,
+lever-arm velocities, stationarity, tilt correction (eq. 3), learning gates, heading channel,
+position blend. Pure code: no I/O, no clock; time comes from the samples.
+
+Choices the papers leave open (ALGORITHMS.md 1) are documented at the method that makes them.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from bisect import bisect_left
+from collections import deque
+from dataclasses import dataclass, replace
+from typing import Literal
+
+import numpy as np
+
+from drivers.log_limit import LogLimiter
+from drivers.samples import FixQuality, GnssFix, ImuSample
+from gateway.estimation.attitude import (
+    dcm_from_rpy,
+    exp_so3,
+    roll_pitch_from_specific_force,
+    rpy_from_dcm,
+    wrap_pi,
+)
+from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
+from gateway.estimation.geodesy import LocalFrame
+from gateway.estimation.gnss_track import GnssTrack
+from gateway.estimation.levelling import WindowMotion
+from gateway.estimation.lever_arm import reference_from_antenna, velocity_at
+from gateway.estimation.observer.heading_channel import DEG, HeadingChannel
+from gateway.estimation.observer.observer_config import GRAVITY_MPS2, ObserverConfig
+from gateway.estimation.observer.tereshkov import TereshkovObserver
+from gateway.estimation.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
+
+#: History kept for late GNSS epochs, samples (5 s at 204.8 Hz): latency + one interval.
+HISTORY_LEN = 1024
+#: Tilt alignment accepts a non-quiet window after this long (vehicle never still/straight).
+ALIGN_TIMEOUT_S = 10.0
+#: Time constant of the running estimate of the tilt-residual noise (roll/pitch sigma).
+E_NOISE_TAU_S = 10.0
+#: Body rate for the lever-arm velocity: mean over this long, centred on the epoch (the
+#: history already holds the samples after it, the receiver being ~70 ms late). One ADIS16334
+#: sample is ~0.5 deg/s noisy (ARW 2 deg/rt-h at 204.8 Hz), 2.5 cm/s on a 3 m mast; 0.1 s
+#: averages that to 0.8 cm/s, and centring removes the lag that a trailing window has (bumps
+#: rock the mast at 0.3-1 Hz, 0.3 m/s at its top: 25 ms of lag cost 5 cm/s).
+LEVER_RATE_WINDOW_S = 0.1
+#: Rate of turn output: mean body rate over this long before the last sample.
+OUTPUT_RATE_WINDOW_S = 0.05
+#: Body rate for the stationarity test: mean over this long before the epoch.
+STATIONARY_RATE_WINDOW_S = 0.2
+#: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
+GYRO_BIAS_FLOOR_RPS = 0.01 * DEG
+ACCEL_BIAS_FLOOR_MPS2 = 0.01
+
+# history row: (t, integral of f_p N, E, D, platform heading psi, cumulative heading
+# correction, integral of the bias-corrected body rate x, y, z)
+_Row = tuple[float, float, float, float, float, float, float, float, float]
+
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ObserverCounters:
+    """GNSS epochs not used as they came (for the logs and tests)."""
+
+    position_rejected: int = 0  # position residual beyond the gate: a glitch
+    position_resets: int = 0  # rejected for ``position_reset_s``: reset to the GNSS
+    late_epochs: int = 0  # epoch older than the IMU history: dropped
+
+
+class ObserverEngine:
+    """Tereshkov observer engine (ALGORITHMS.md 1, 2, 4) behind the Estimator protocol."""
+
+    def __init__(self, config: ObserverConfig | None = None) -> None:
+        cfg = config if config is not None else ObserverConfig()
+        self.cfg = cfg
+        self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
+        self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
+        self._heading = HeadingChannel(cfg)
+        self._clock = EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self._observer: TereshkovObserver | None = None
+        # tilt alignment
+        self._align_sum = [0.0] * 6  # sums of w_b and f_b over the window
+        self._align_n = 0
+        self._align_t0_s: float | None = None
+        self._align_first_s: float | None = None
+        self._align_motion = WindowMotion(cfg.gnss_vel_sigma_mps, cfg.stationary_speed_mps)
+        self._sigma_level_rad = 0.0  # tilt error of levelling on a moving window, decaying
+        self._heading_aligned = False
+        # IMU-time state and history
+        self._t_s: float | None = None
+        self._sf = [0.0, 0.0, 0.0]  # running integral of f_p, m/s
+        self._wi = [0.0, 0.0, 0.0]  # running integral of w_b, rad
+        self._hc_rad = 0.0  # running integral of the heading control rate
+        self._w_pz_rps = 0.0
+        self._hist: deque[_Row] = deque(maxlen=HISTORY_LEN)
+        self._pending: deque[tuple[float, GnssFix]] = deque(maxlen=16)  # epochs ahead of IMU
+        # reference-point navigation (NED around the first fix)
+        self._p_ned_m = [0.0, 0.0, 0.0]
+        self._v_ned_mps = [0.0, 0.0, 0.0]
+        self._nav_valid = False
+        self._frame: LocalFrame | None = None  # local NED around the first fix
+        self._t_pos_epoch_s: float | None = None
+        # GNSS bookkeeping
+        self._last_fix: GnssFix | None = None
+        self._t_vel_rx_s: float | None = None  # receive time of the last usable velocity
+        self._prev_epoch: tuple[float, float, float, _Row] | None = None  # t, vN, vE at IMU
+        self._stationary = False  # at rest and not turning (status bit, zero-rate update)
+        self._at_rest = False  # reference point not moving (turning on the spot allowed)
+        self._zero_rate_start: _Row | None = None  # history row where the rest window began
+        self._coasting = False  # GNSS velocity timed out: platform open loop
+        # learning gates and convergence bookkeeping
+        self._learn_ok_since_s: float | None = None
+        self._imu_upset = False  # alarm or saturation since the last epoch
+        self._g_learn = 0.0  # integral of dt / tau_g while learning
+        self._a_learn = 0.0  # integral of w_z^2 / omega_a dt while learning
+        self._e_var_mps4 = 0.0  # running variance of one horizontal e component
+        self._epoch_interval_s = 0.1  # last closed-loop GNSS interval
+        self._t_last_epoch_s: float | None = None
+        self._control_until_s: float | None = None  # IMU time the epoch's control rates end
+        self._control_from_s = 0.0  # IMU time they began
+        self._control_period_s = 0.0  # the epoch period they are meant for
+        self._rejecting_since_s: float | None = None  # epoch time glitches began, if ongoing
+        # IMU health
+        self._timing = ImuTiming()
+        self.counters = ObserverCounters()
+        self._log = LogLimiter(log)
+        self._track = GnssTrack()  # the receiver's own track: glitch or engine off?
+        self._imu_alarm = False
+        self._bad_since_s: float | None = None  # start of a run of invalid/saturated samples
+        self._bad_for_s = 0.0  # length of that run so far
+
+    # ======================================================================== prediction
+
+    def imu(self, sample: ImuSample) -> None:
+        """Propagate with one IMU sample (body frame, bias not yet removed)."""
+        t = sample.t
+        dt = self._timing.step(sample)
+        w = sample.w_ib_b.tolist()
+        f = sample.f_ib_b.tolist()
+        if not (dt > 0.0 and math.isfinite(w[0] + w[1] + w[2] + f[0] + f[1] + f[2] + t)):
+            self._mark_bad(t)
+            return
+        self._imu_alarm = sample.alarm
+        if sample.alarm or sample.saturated:
+            self._imu_upset = True
+        if sample.saturated:
+            self._mark_bad(t)
+        else:
+            self._bad_since_s = None
+            self._bad_for_s = 0.0
+        self._t_s = t
+        obs = self._observer
+        if obs is None:
+            self._align_tilt(t, w, f)
+            return
+        if self._control_until_s is not None and t > self._control_until_s:
+            self._end_control()
+        fpn, fpe, fpd = obs.propagate((w[0], w[1], w[2]), (f[0], f[1], f[2]), dt)
+        self._propagate_navigation(fpn, fpe, fpd, dt)
+        c = obs.c_bp9
+        self._hc_rad += self._w_pz_rps * dt
+        sf = self._sf
+        wi = self._wi
+        w_b = obs.w_b_rps
+        wi[0] += w_b[0] * dt
+        wi[1] += w_b[1] * dt
+        wi[2] += w_b[2] * dt
+        self._hist.append(
+            (t, sf[0], sf[1], sf[2], math.atan2(c[3], c[0]), self._hc_rad, wi[0], wi[1], wi[2])
+        )
+        if (
+            not self._coasting
+            and self._t_vel_rx_s is not None
+            and t - self._t_vel_rx_s > self.cfg.gnss_timeout_s
+        ):
+            self._enter_coasting()
+        pending = self._pending
+        while pending and pending[0][0] <= t:
+            t_e, fix = pending.popleft()
+            self._correct(fix, t_e)
+
+    def _propagate_navigation(self, fpn: float, fpe: float, fpd: float, dt: float) -> None:
+        """Reference-point velocity and position from a = f_p + g; f_p integral for eq. (3).
+
+        The IMU lever arm's centripetal terms are not removed here: GNSS resets the velocity
+        every epoch, and over 0.1 s they are below a few mm (the IMU arm is mostly vertical).
+        """
+        sf = self._sf
+        sf[0] += fpn * dt
+        sf[1] += fpe * dt
+        sf[2] += fpd * dt
+        v = self._v_ned_mps
+        p = self._p_ned_m
+        v[0] += fpn * dt
+        v[1] += fpe * dt
+        v[2] += (fpd + GRAVITY_MPS2) * dt
+        p[0] += v[0] * dt
+        p[1] += v[1] * dt
+        p[2] += v[2] * dt
+
+    def _align_tilt(self, t: float, w: list[float], f: list[float]) -> None:
+        """Roll/pitch from the mean specific force over a quiet window, yaw 0 until COG/HDT.
+
+        Quiet = |mean w| over the window below ``align_quiet_rate_dps`` (still, or straight
+        at constant speed, where the mean f_b is -g as well; the mean, because gyro noise and
+        engine vibration exceed the threshold sample by sample). A turning window is dropped,
+        unless the engine has tried for ``ALIGN_TIMEOUT_S``: then it is taken as is and the
+        tilt loop (tau) finishes the job.
+        """
+        if self._align_first_s is None:
+            self._align_first_s = t
+        if self._align_t0_s is None:
+            self._align_t0_s = t
+            self._align_sum = [0.0] * 6
+            self._align_n = 0
+            self._align_motion.restart()
+        s = self._align_sum
+        for i in range(3):
+            s[i] += w[i]
+            s[3 + i] += f[i]
+        self._align_n += 1
+        if t - self._align_t0_s < self.cfg.align_tilt_time_s:
+            return
+        n = self._align_n
+        quiet = math.hypot(s[0], s[1], s[2]) / n < self.cfg.align_quiet_rate_dps * DEG
+        if not quiet and t - self._align_first_s < ALIGN_TIMEOUT_S:
+            self._align_t0_s = None
+            return
+        roll, pitch = roll_pitch_from_specific_force((s[3] / n, s[4] / n, s[5] / n))
+        self._sigma_level_rad = self._align_motion.tilt_sigma_rad()
+        self._observer = TereshkovObserver(
+            self.cfg.tau_s,
+            self.cfg.tau_g_s,
+            self.cfg.omega_a_dps * DEG,
+            dcm_from_rpy(roll, pitch, 0.0),
+        )
+
+    # ======================================================================= corrections
+
+    def gnss(self, fix: GnssFix) -> None:
+        """Correct with one GNSS epoch; it may arrive after IMU samples of later time.
+
+        An epoch whose time is ahead of the last IMU sample (zero or under-stated latency)
+        waits until the IMU has covered it, so e and the heading residual always compare
+        quantities of the same instant.
+        """
+        self._last_fix = fix
+        if self._observer is None and self._align_t0_s is not None:
+            self._align_motion.add(fix)
+        if self._observer is None or fix.quality == FixQuality.NONE:
+            return
+        t_e = self._clock.epoch_time(fix)
+        if self._t_s is None or t_e > self._t_s:
+            self._pending.append((t_e, fix))
+            return
+        self._correct(fix, t_e)
+
+    def _correct(self, fix: GnssFix, t_e: float) -> None:
+        """All corrections of one epoch at epoch time ``t_e`` (<= the last IMU time)."""
+        obs = self._observer
+        assert obs is not None
+        row = self._history_at(t_e)
+        c_bn = obs.c_bp
+        vel = self._velocity_ne(fix)
+        if vel is None or row is None:
+            self._prev_epoch = None
+            self._update_gates(t_e, ok=False)
+            c_e = c_bn if row is None else self._attitude_at(row, c_bn)
+            self._correct_position(fix, t_e, row, c_e, None)
+            return
+        v_ant = (vel[0], vel[1], 0.0)
+        half = 0.5 * LEVER_RATE_WINDOW_S
+        w_lever = self._mean_rate(t_e - half, self._history_at(t_e + half) or row)
+        w_still = self._mean_rate(t_e - STATIONARY_RATE_WINDOW_S, row)
+        c_e = self._attitude_at(row, c_bn)
+        v_ref = velocity_at(v_ant, c_e, w_lever, self._l_ant_b, np.zeros(3))
+        v_imu = velocity_at(v_ant, c_e, w_lever, self._l_ant_b, self._l_imu_b)
+        speed_ref = math.hypot(v_ref[0], v_ref[1])
+        self._t_vel_rx_s = fix.t
+        self._coasting = False
+        # at rest in translation: v = 0 is then a velocity reference in any azimuth, so the
+        # tilt loop and x/y gyro learning need no heading and no rate test (a large gyro bias
+        # must not keep the loop open: 0.5 deg/s per axis tilts 2 deg in 4 s open loop)
+        self._at_rest = speed_ref < self.cfg.stationary_speed_mps
+        rate_limit = self.cfg.stationary_rate_dps * DEG + 3.0 * self._sigma_bg_rps()
+        self._stationary = self._at_rest and float(np.linalg.norm(w_still)) < rate_limit
+        self._hold_control(t_e)
+        glitch = self._correct_tilt(t_e, float(v_imu[0]), float(v_imu[1]), row)
+        # Learning goes on at rest: the tilt loop is closed there too (v = 0 is the best
+        # velocity reference there is), the control rate still equals the x/y gyro bias
+        # (eq. 15), and eq. (12) moves no accelerometer bias without a yaw rate. Freezing it
+        # let the tilt settle at b_g tau during every stop, then an 8 s hold-off after it.
+        self._update_gates(
+            t_e,
+            ok=(
+                int(fix.quality) in self.cfg.learning_fix_qualities
+                and not glitch
+                and (self._heading_aligned or self._at_rest)
+                and not self._imu_upset
+            ),
+        )
+        self._zero_rate_update(t_e, row)
+        self._imu_upset = False
+        cog_ref = math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
+        yaw_rate = float(c_bn[2] @ w_still)
+        self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn)
+        self._correct_position(fix, t_e, row, c_e, (float(v_ref[0]), float(v_ref[1])))
+
+    def _hold_control(self, t_e: float) -> None:
+        """The control rates this epoch sets are meant for one epoch period (time since the
+        previous epoch), as eq. (3)'s discrete form and the heading gain assume. The next
+        epoch normally replaces them; if it does not come, both loops open after 1.5 periods
+        (the half period covers receive jitter and the IMU sample granularity: exactly one
+        period cut off ~2 % of every correction at 204.8 Hz, roll 0.092 -> 0.093 deg on
+        field). Held until the next epoch instead, the last rates before an outage ran on to
+        the GNSS timeout: 15 periods of one noisy correction, 1.2 deg of roll and pitch at the
+        start of a 20 s outage after a DGNSS spell."""
+        last = self._t_last_epoch_s
+        period_s = t_e - last if last is not None else 0.0
+        if not 0.0 < period_s <= self.cfg.max_gnss_interval_s:
+            period_s = self._epoch_interval_s
+        assert self._t_s is not None and self._observer is not None
+        if self._control_until_s is not None:
+            # The previous epoch's rates are still on: what is left of its period is applied
+            # at once, so each epoch corrects for its full period. Epochs that reach the
+            # engine in a burst (a loaded host) otherwise replaced each other's rates unused:
+            # one correction in twenty, and the tilt loop all but open.
+            left = self._control_period_s - (self._t_s - self._control_from_s)
+            if left > 0.0:
+                self._observer.apply_control(left)
+                self._hc_rad += self._w_pz_rps * left
+        self._control_from_s, self._control_period_s = self._t_s, period_s
+        self._control_until_s = self._t_s + 1.5 * period_s
+
+    def _end_control(self) -> None:
+        """The epoch's period is over and no new epoch has come: both loops open."""
+        obs = self._observer
+        assert obs is not None
+        obs.open_tilt_loop()
+        obs.set_heading_rate(0.0)
+        self._w_pz_rps = 0.0
+        self._control_until_s = None
+
+    def _zero_rate_update(self, t_e: float, row: _Row) -> None:
+        """At rest, every ``gyro_z_window_s`` the mean body z rate is the residual z-gyro bias
+        (heading channel KF): a 20 s stop pins it to ARW / sqrt(20 s) = 0.007 deg/s, where
+        course-over-ground heading could not observe it at all."""
+        if not (self._stationary and self.cfg.estimate_biases) or self._imu_upset:
+            self._zero_rate_start = None
+            return
+        start = self._zero_rate_start
+        if start is None or t_e - start[0] < self.cfg.gyro_z_window_s:
+            if start is None:
+                self._zero_rate_start = row
+            return
+        window_s = t_e - start[0]
+        self._heading.observe_zero_rate(t_e, (row[8] - start[8]) / window_s, window_s)
+        assert self._observer is not None
+        self._observer.set_gyro_bias_z(self._heading.bg_z_rps)
+        self._zero_rate_start = row
+
+    def _velocity_ne(self, fix: GnssFix) -> tuple[float, float] | None:
+        """Horizontal antenna velocity; a receiver that has never moved gives SOG only.
+
+        Without COG, a speed below ``stationary_speed_mps`` is taken as zero velocity (the
+        tilt loop then still levels the platform at rest before the first drive).
+        """
+        vel = fix.vel_ne_mps
+        if vel is None and fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps:
+            return (0.0, 0.0)
+        return vel
+
+    def _history_at(self, t_s: float) -> _Row | None:
+        """History row interpolated at ``t_s``; None if older than the history."""
+        hist = self._hist
+        if not hist or t_s < hist[0][0]:
+            return None
+        if t_s >= hist[-1][0]:
+            return hist[-1]
+        i = bisect_left(hist, t_s, key=lambda r: r[0])
+        a, b = hist[i - 1], hist[i]
+        u = (t_s - a[0]) / (b[0] - a[0])
+        psi = (a[4] + u * wrap_pi(b[4] - a[4])) % (2.0 * math.pi)
+        sf_n, sf_e, sf_d, _, hc, wx, wy, wz = (
+            x + u * (y - x) for x, y in zip(a[1:], b[1:], strict=True)
+        )
+        return (t_s, sf_n, sf_e, sf_d, psi, hc, wx, wy, wz)
+
+    def _attitude_at(self, row: _Row, c_bn: np.ndarray) -> np.ndarray:
+        """C_b^n at the time of ``row``: the current C turned back by the body rotation since
+        (integral of w_b from the history; the platform control rate is negligible over the
+        ~0.1 s of receiver latency). A bump rolls the mast by ~0.5 deg in 70 ms."""
+        last = self._hist[-1]
+        return c_bn @ exp_so3((row[6] - last[6], row[7] - last[7], row[8] - last[8]))
+
+    def _mean_rate(self, t0_s: float, row: _Row) -> np.ndarray:
+        """Mean bias-corrected body rate (3,) over [t0_s, row time], from the history."""
+        row0 = self._history_at(t0_s)
+        if row0 is None or row[0] <= row0[0]:
+            return np.array(self._observer.w_b_rps if self._observer is not None else (0, 0, 0.0))
+        return (np.array(row[6:9]) - np.array(row0[6:9])) / (row[0] - row0[0])
+
+    def _correct_tilt(self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row) -> bool:
+        """Eq. (3) over exactly the GNSS interval; returns True for a glitch.
+
+        e = (v_k - v_{k-1}) / T - mean f_p over [t_{k-1}, t_k], horizontal (the -g term has no
+        horizontal part). The velocity is moved from the antenna to the IMU with both lever
+        arms first, so that it describes the point whose specific force is measured. Before the
+        heading is known the horizontal f_p is in an arbitrary azimuth, so the loop is closed
+        only while at rest (v = 0 in any azimuth). A velocity mismatch |e| T beyond
+        :meth:`_glitch_dv_mps` is a glitch: the loop stays open for the interval (no attitude
+        kick) and learning is gated (hold-off after it). Glitches that last
+        ``glitch_persist_s`` are the platform's error, not the GNSS's (a velocity step cancels
+        in the differences after one new base): e is then used again, clipped to the gate, so
+        a platform tilted beyond the gate recovers.
+
+        A rejected epoch is skipped, not made the base of the next difference: the next e
+        spans the last accepted epoch to it, and its control rate, held for one epoch period,
+        is scaled by interval / period. The gate is that of one period however long the span:
+        a velocity step is rejected until the span exceeds ``max_gnss_interval_s`` and a new
+        base starts after it. So the applied tilt corrections still telescope to
+        (v_last - v_first) / (g tau), one velocity error, however many epochs are rejected.
+        Differencing against a rejected epoch instead made noisy spells (single-point GNSS,
+        8 cm/s: e ~1.1 m/s^2 against a 1.5 m/s^2 gate) a random walk of 1-2 deg in tilt.
+        """
+        obs = self._observer
+        assert obs is not None
+        prev = self._prev_epoch
+        current = (t_e, v_imu_n, v_imu_e, row)
+        interval_s = 0.0 if prev is None else t_e - prev[0]
+        if prev is None or not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
+            self._prev_epoch = current
+            self._set_tilt_open()
+            return False
+        prow = prev[3]
+        e_n = (v_imu_n - prev[1]) / interval_s - (row[1] - prow[1]) / interval_s
+        e_e = (v_imu_e - prev[2]) / interval_s - (row[2] - prow[2]) / interval_s
+        last = self._t_last_epoch_s
+        period_s = interval_s if last is None else min(interval_s, max(t_e - last, 1e-3))
+        scale = interval_s / period_s
+        mismatch_mps, gate_mps = math.hypot(e_n, e_e) * interval_s, self._glitch_dv_mps(period_s)
+        glitch = mismatch_mps > gate_mps
+        if not glitch:
+            self._rejecting_since_s = None
+        else:
+            if self._rejecting_since_s is None:
+                self._rejecting_since_s = t_e
+            if t_e - self._rejecting_since_s < self.cfg.glitch_persist_s:
+                self._set_tilt_open()
+                return True
+            # rejected this long: the platform is off, not the GNSS; correct, clipped
+            e_n, e_e = e_n * gate_mps / mismatch_mps, e_e * gate_mps / mismatch_mps
+        self._prev_epoch = current
+        if not self._heading_aligned and not self._at_rest:
+            self._set_tilt_open()
+            return False
+        obs.correct_tilt(e_n * scale, e_e * scale)
+        self._sigma_level_rad *= math.exp(-interval_s / self.cfg.tau_s)
+        self._epoch_interval_s = interval_s
+        a = min(1.0, interval_s / E_NOISE_TAU_S)
+        self._e_var_mps4 += a * (0.5 * (e_n * e_n + e_e * e_e) - self._e_var_mps4)
+        return glitch
+
+    def _glitch_dv_mps(self, period_s: float) -> float:
+        """Largest velocity-change mismatch over one epoch period that is not a glitch: white
+        GNSS velocity noise (the difference of two 2-D errors, Rayleigh with scale sqrt(2)
+        sigma_v) plus a specific-force mismatch ``e_gate_mps2``. The noise part does not
+        shrink with the period, so a 20 Hz receiver is not half rejected, nor does a 1 Hz
+        receiver get a gate 10 times wider than its noise."""
+        cfg = self.cfg
+        noise_mps = cfg.glitch_sigma * math.sqrt(2.0) * cfg.gnss_vel_sigma_mps
+        return noise_mps + cfg.e_gate_mps2 * period_s
+
+    def _set_tilt_open(self) -> None:
+        assert self._observer is not None
+        self._observer.open_tilt_loop()
+
+    def _enter_coasting(self) -> None:
+        """GNSS velocity timed out: platform runs open loop (w_p = 0), learning frozen."""
+        obs = self._observer
+        assert obs is not None
+        obs.open_tilt_loop()
+        obs.set_heading_rate(0.0)
+        obs.learn = False
+        self._w_pz_rps = 0.0
+        self._coasting = True
+        self._prev_epoch = None
+        self._learn_ok_since_s = None
+
+    def _update_gates(self, t_e: float, ok: bool) -> None:
+        """Bias learning on only after all gates have been open for ``learning_holdoff_s``.
+
+        Also accumulates the convergence exponents: t / tau_g (gyro x/y) and
+        integral of w_z^2 / omega_a (accelerometer x/y: its loop gain, eqs. 10 and 12).
+        """
+        obs = self._observer
+        assert obs is not None
+        interval_s = 0.0 if self._t_last_epoch_s is None else t_e - self._t_last_epoch_s
+        self._t_last_epoch_s = t_e
+        if obs.learn and 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
+            self._g_learn += interval_s / self.cfg.tau_g_s
+            self._a_learn += obs.w_b_rps[2] ** 2 * interval_s / (self.cfg.omega_a_dps * DEG)
+        if not (ok and self.cfg.estimate_biases):
+            self._learn_ok_since_s = None
+            obs.learn = False
+            return
+        if self._learn_ok_since_s is None:
+            self._learn_ok_since_s = t_e
+        obs.learn = t_e - self._learn_ok_since_s >= self.cfg.learning_holdoff_s
+
+    def _correct_heading(
+        self,
+        t_e: float,
+        row: _Row,
+        cog_ref_rad: float,
+        speed_ref_mps: float,
+        hdt_rad: float | None,
+        yaw_rate_rps: float,
+        c_bn: np.ndarray,
+    ) -> None:
+        """First heading alignment, then the heading channel (ALGORITHMS.md 2).
+
+        Alignment takes HDT, or the first reference-point course at ``align_min_speed_mps``
+        (assumed forward: a farm vehicle starts by driving forward). The heading channel's
+        bias KF learns under the same gates as the observer.
+        """
+        obs = self._observer
+        assert obs is not None
+        if not self._heading_aligned:
+            if hdt_rad is not None:
+                target, sigma = hdt_rad, self.cfg.hdt_sigma_deg * DEG
+            elif speed_ref_mps >= self.cfg.align_min_speed_mps:
+                target, sigma = cog_ref_rad, self.cfg.gnss_vel_sigma_mps / speed_ref_mps
+            else:
+                return
+            # yaw at t_e is psi_e; move it onto the reference, keep the gyro motion since t_e
+            obs.rotate_about_vertical(wrap_pi(target - row[4]))
+            self._heading_aligned = True
+            self._heading.aligned(sigma)
+            return
+        ref = self._heading.select_reference(
+            t_e, row[4], cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
+        )
+        corr = self._heading.correct(t_e, row[4], ref, row[5], float(c_bn[2, 2]), obs.learn)
+        if corr.step_rad:
+            obs.rotate_about_vertical(corr.step_rad)
+        self._w_pz_rps = corr.w_pz_rps
+        obs.set_heading_rate(corr.w_pz_rps)
+        obs.set_gyro_bias_z(self._heading.bg_z_rps)
+
+    def _correct_position(
+        self,
+        fix: GnssFix,
+        t_e: float,
+        row: _Row | None,
+        c_bn: np.ndarray,
+        v_ref_ne: tuple[float, float] | None,
+    ) -> None:
+        """Reference point = antenna - C l_ant (full 3-D), blended into the propagated state.
+
+        The propagated state at t_e is reconstructed from the f_p integral in the history:
+        v(t_e) = v_now - (S_f(now) - S_f(t_e)) - g (now - t_e), p(t_e) by the trapezoid.
+        Horizontal velocity is reset to the GNSS one at t_e (plus the inertial change since);
+        position is blended with gain alpha = min(1, 2T/tau_pos); vertical velocity, which GNSS
+        does not give, comes from the height residual (second-order complementary loop).
+
+        The corrections (dp, dv) are made at t_e and reach the current state through the age
+        a = now - t_e: p_now += dp + dv a, v_now += dv. Adding dv to the velocity without its
+        a dv to the position made the next epoch's back-propagated p(t_e) wrong by a dv, which
+        the vertical loop fed back with gain beta a per epoch: on a loaded host, where epochs
+        reach the engine seconds late and in bursts, the height diverged to 1e15 m and the
+        output position to the antipode of the field.
+        """
+        if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or self._t_s is None:
+            return
+        if self._frame is None:
+            self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
+        p_ant = np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
+        self._track.add(
+            t_e, (float(p_ant[0]), float(p_ant[1])), fix.vel_ne_mps, fix.horizontal_sigma_m
+        )
+        p_ref = reference_from_antenna(p_ant, c_bn, self._l_ant_b)
+        p, v, sf = self._p_ned_m, self._v_ned_mps, self._sf
+        if row is None:
+            if len(self._hist) == HISTORY_LEN:  # not an epoch from before the engine started
+                self.counters.late_epochs += 1
+                self._log.warning(t_e, late_epoch_text(t_e, self._hist[0][0]), "late")
+            return
+        if not self._nav_valid:
+            age = self._t_s - t_e
+            vn, ve = v_ref_ne if v_ref_ne is not None else (0.0, 0.0)
+            self._v_ned_mps = [vn, ve, 0.0]
+            self._p_ned_m = [
+                float(p_ref[0] + vn * age),
+                float(p_ref[1] + ve * age),
+                float(p_ref[2]),
+            ]
+            self._nav_valid = True
+            self._t_pos_epoch_s = t_e
+            return
+        age = self._t_s - row[0]
+        v_e = [
+            v[0] - (sf[0] - row[1]),
+            v[1] - (sf[1] - row[2]),
+            v[2] - (sf[2] - row[3]) - GRAVITY_MPS2 * age,
+        ]
+        dp = [float(p_ref[i]) - (p[i] - 0.5 * (v[i] + v_e[i]) * age) for i in range(3)]
+        interval_s = min(t_e - (self._t_pos_epoch_s or t_e), self.cfg.max_gnss_interval_s)
+        tau = self.cfg.pos_blend_tau_s
+        k_p = min(1.0, 2.0 * interval_s / tau) if interval_s > 0.0 else 1.0
+        verdict = self._gate_position(fix, t_e, dp)
+        if verdict == "reject":
+            k_p, interval_s = 0.0, 0.0  # dead reckoning on the GNSS velocity meanwhile
+        elif verdict == "reset":
+            k_p = 1.0
+        dv = [0.0, 0.0, 0.0]
+        if v_ref_ne is not None:
+            dv[0] = v_ref_ne[0] - v_e[0]
+            dv[1] = v_ref_ne[1] - v_e[1]
+        if interval_s > 0.0:
+            # alpha-beta form of the critically damped loop (2/tau, 1/tau^2): beta = alpha^2/4
+            # stays stable with alpha capped at 1 whatever the epoch interval (1 Hz included)
+            dv[2] = 0.25 * k_p * k_p / interval_s * dp[2]
+        for i in range(3):
+            p[i] += k_p * dp[i] + dv[i] * age
+            v[i] += dv[i]
+        if k_p > 0.0:
+            self._t_pos_epoch_s = t_e
+
+    def _gate_position(
+        self, fix: GnssFix, t_e: float, dp: list[float]
+    ) -> Literal["use", "reject", "reset"]:
+        """Use, reject (a glitch) or reset to the position whose horizontal residual is ``dp``.
+
+        Gate: ``glitch_sigma`` x (the fix's horizontal sigma + the velocity's drift since the
+        last position used) + ``position_gate_m``. A glitch is counted, logged at a limited
+        rate, and not blended in (the velocity still is); the mode is DEGRADED meanwhile.
+        The engine resets to the GNSS after ``reset_rejections`` if the receiver's track is
+        continuous (the engine is off), else after ``position_reset_s`` (it moved for good:
+        a new base station, a datum change); see :mod:`gateway.estimation.gnss_track`.
+        """
+        cfg, track = self.cfg, self._track
+        since_s = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
+        sigma_h = fix.horizontal_sigma_m + cfg.gnss_vel_sigma_mps * since_s
+        gate_m = cfg.glitch_sigma * sigma_h + cfg.position_gate_m
+        residual_m = math.hypot(dp[0], dp[1])
+        if residual_m <= gate_m:
+            track.accepted()
+            return "use"
+        if track.reset_due(t_e, cfg.reset_rejections, cfg.position_reset_s):
+            self.counters.position_resets += 1
+            log.warning(
+                "GNSS position %.2f m from the dead-reckoned one for %d epochs at t=%.3f: "
+                "position reset to it", residual_m, track.rejections, t_e,
+            )  # fmt: skip
+            track.accepted()
+            return "reset"
+        track.rejected(t_e)
+        self.counters.position_rejected += 1
+        self._log.warning(
+            t_e,
+            f"GNSS position glitch at t={t_e:.3f}: {residual_m:.2f} m from the dead-reckoned "
+            f"position, gate {gate_m:.2f} m (quality {int(fix.quality)}); position not used",
+            "glitch",
+        )
+        return "reject"
+
+    def _mark_bad(self, t: float) -> None:
+        """An invalid (skipped) or saturated sample: a run of them lasting
+        ``imu_fault_s`` is a FAULT."""
+        if self._bad_since_s is None:
+            self._bad_since_s = t
+        self._bad_for_s = t - self._bad_since_s
+
+    # ========================================================================= read-out
+
+    def solution(self) -> Solution:
+        """The current solution at the time of the last IMU sample."""
+        t = self._t_s if self._t_s is not None else 0.0
+        fix = self._last_fix
+        base = Solution(
+            t=t,
+            mode=Mode.INITIALISING,
+            fix_quality=fix.quality if fix is not None else None,
+            num_sats=fix.num_sats if fix is not None else None,
+            hdop=fix.hdop if fix is not None else None,
+            age_s=fix.age_s if fix is not None else None,
+            imu_alarm=self._imu_alarm,
+            imu_ok=self._t_s is not None and self._bad_since_s is None,
+        )
+        obs = self._observer
+        if obs is None:
+            return base
+        c_bn = obs.c_bp
+        roll, pitch, yaw = rpy_from_dcm(c_bn)
+        coasting_s = self._coasting_s()
+        gnss_ok = (
+            fix is not None
+            and fix.quality != FixQuality.NONE
+            and self._t_vel_rx_s is not None
+            and coasting_s == 0.0
+        )
+        lat = lon = alt = None
+        vel = None
+        if self._nav_valid and self._frame is not None and coasting_s <= self.cfg.max_coast_s:
+            lat, lon, alt = self._frame.to_lla(*self._p_ned_m)
+            vel = (self._v_ned_mps[0], self._v_ned_mps[1], self._v_ned_mps[2])
+        k = self.cfg.converged_time_constants
+        return replace(
+            base,
+            mode=self._mode(coasting_s),
+            roll_rad=roll,
+            pitch_rad=pitch,
+            yaw_rad=yaw if self._heading_aligned else None,
+            yaw_rate_rps=self._yaw_rate_rps(c_bn),
+            lat_deg=lat,
+            lon_deg=lon,
+            alt_m=alt,
+            vel_ned_mps=vel,
+            bias_g_rps=obs.bg_hat_rps,
+            bias_a_mps2=obs.ba_hat_mps2,
+            sigma_tilt_rad=self._sigma_tilt_rad(coasting_s),
+            gnss_ok=gnss_ok,
+            reversing=self._heading.reversing,
+            stationary=self._stationary,
+            convergence=Convergence(
+                gyro_xy=self._g_learn >= k,
+                gyro_z=self._heading.kf.sigma_rps < self.cfg.gyro_z_converged_dps * DEG,
+                accel_xy=self._a_learn >= k,
+                learning_frozen=not obs.learn,
+            ),
+        )
+
+    def _yaw_rate_rps(self, c_bn: np.ndarray) -> float | None:
+        """Rate of turn about the NED vertical, (C w_b)[2], w_b averaged over the last
+        ``OUTPUT_RATE_WINDOW_S`` (a single ADIS16334 sample is 0.5 deg/s noisy)."""
+        if not self._hist:
+            return None
+        last = self._hist[-1]
+        return float(c_bn[2] @ self._mean_rate(last[0] - OUTPUT_RATE_WINDOW_S, last))
+
+    def _coasting_s(self) -> float:
+        """Time since usable GNSS velocity stopped, 0 while it flows (receive-time clock)."""
+        if self._t_s is None or self._t_vel_rx_s is None or not self._coasting:
+            return 0.0
+        return max(0.0, self._t_s - self._t_vel_rx_s)
+
+    def _mode(self, coasting_s: float) -> Mode:
+        return navigation_mode(
+            fault=self._bad_for_s >= self.cfg.imu_fault_s,
+            aligned=self._heading_aligned,
+            coasting=coasting_s > 0.0,
+            imu_alarm=self._imu_alarm,
+            fix=self._last_fix,
+            navigating_fix_qualities=self.cfg.navigating_fix_qualities,
+            imu_gap=self._timing.degraded(),
+            gnss_glitch=self._track.rejecting_since_s is not None,
+        )
+
+    def _sigma_bg_rps(self) -> float:
+        """x/y gyro bias 1-sigma: the turn-on sigma decaying with the learning exponent."""
+        sigma0 = self.cfg.gyro_bias_sigma0_dps * DEG
+        return max(sigma0 * math.exp(-self._g_learn), GYRO_BIAS_FLOOR_RPS)
+
+    def _sigma_tilt_rad(self, coasting_s: float) -> float:
+        """Roll/pitch 1-sigma from the observer's physics (seed 000, eqs. 3, 8, 10).
+
+        Sum of squares of:
+        - gyro angular random walk through the tilt loop (first order, tau): ARW sqrt(tau / 2);
+        - GNSS velocity noise: e is a velocity *difference* over T, so its integral telescopes
+          and the tilt sees one velocity error, not a random walk: sigma_v / (g tau), with
+          sigma_v^2 = var(e) T^2 / 2 from the running variance of e (white velocity noise
+          differenced at 10 Hz is 0.28 m/s^2 on e but only 0.03 deg of tilt);
+        - residual gyro bias times tau (steady tilt b_g tau, eq. 10) and accelerometer bias
+          over g (eq. 8), each decaying from its initial 1-sigma with the learning exponent
+          down to the paper's residual level;
+        - open-loop drift b_g t while coasting;
+        - the tilt error of levelling on a moving window (:mod:`gateway.estimation.levelling`),
+          decaying
+          with tau while the tilt loop is closed.
+        """
+        cfg = self.cfg
+        g = GRAVITY_MPS2
+        sigma_bg = self._sigma_bg_rps()
+        sigma_ba = max(cfg.accel_bias_sigma0_mps2 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2)
+        arw = cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
+        return math.sqrt(
+            arw**2 * cfg.tau_s / 2.0
+            + (sigma_v / (g * cfg.tau_s)) ** 2
+            + (sigma_bg * cfg.tau_s) ** 2
+            + (sigma_ba / g) ** 2
+            + (sigma_bg * coasting_s) ** 2
+            + self._sigma_level_rad**2
+        )

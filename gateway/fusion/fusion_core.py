@@ -1,0 +1,247 @@
+"""The fusion core: decoded inputs in time order in, frames to send out. No I/O, no clock.
+
+Live service, replay and demo all drive this one class; only the sources of inputs and
+time differ. Per IMU sample: propagate the engine, advance the address claim, and when a
+PGN is due (and the address is held) pass the current solution through the
+:class:`~gateway.fusion.output_guard.OutputGuard` and encode it. GNSS fixes go to the engine as they
+come; frames received from the ISOBUS go to the address claim. While the claim has seen a
+clone of us (our NAME, or frames from our address that we did not send), NAVGW_STATUS says
+DEGRADED.
+
+Frames come back as iterators that encode as they are taken: a caller that sends while it
+iterates puts the attitude on the bus first (see :meth:`OutputScheduler.frames`).
+
+The IMU drives the outputs, so without it nothing would go out: when no sample has come for
+:data:`IMU_SILENT_S`, every other input and timer tick (the live loop's, a GNSS fix in replay)
+sends NAVGW_STATUS alone at its rate, saying FAULT with the IMU not ok and the samples missing
+in byte 6 (SPEC 4: an outage is reported, not silent). A gap of :data:`RESTART_GAP_S` or more
+restarts the engine: the motion over it is unknown, and a solution carried across it would be
+a guess. A saturated sample (an axis at the end of its register) is no measurement: it is not
+fed to the engine, NAVGW_STATUS says FAULT from that sample on, and when the IMU is back in
+range the engine restarts (the rotation while saturated is unknown: 2 s of full-scale gyro
+left the attitude 179 deg off, then above 1 deg for 35 s, while STATUS said navigating).
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import random
+from collections import deque
+from collections.abc import Callable, Iterable, Iterator
+from dataclasses import dataclass, replace
+from itertools import chain
+
+import can
+
+from drivers.imu_can import ImuCounters
+from drivers.samples import GnssFix, ImuAux, ImuSample
+from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.solution import Estimator, Mode, Solution
+from gateway.fusion.output_guard import OutputGuard
+from gateway.isobus.address_claim import AddressClaimer, Name
+from gateway.isobus.j1939 import DEFAULT_SOURCE_ADDRESS, Pgn
+from gateway.isobus.n2k_encode import LoopStatus, OutputEncoder
+from gateway.isobus.output_scheduler import OutputScheduler
+
+log = logging.getLogger(__name__)
+
+LOST_WINDOW_S = 1.0  # NAVGW_STATUS byte 6: IMU samples lost in the last second
+#: No IMU sample for this long: NAVGW_STATUS goes on alone, saying FAULT (40 periods at
+#: 204.8 Hz; the service's tick looks every 50 ms).
+IMU_SILENT_S = 0.2
+#: A gap this long in the IMU stream, or time going back this much, restarts the engine
+#: (30 s of silence carried across put the EKF's first position 84 m off while navigating).
+RESTART_GAP_S = 1.0
+
+
+@dataclass(frozen=True, slots=True)
+class BusFrame:
+    """An ISOBUS frame from a recording (another node's address claim or request), at the
+    time it was received: replay feeds it to the claimer as the live service does."""
+
+    t: float
+    msg: can.Message
+
+
+@dataclass
+class FusionStats:
+    """Counts of what went through the core."""
+
+    imu_samples: int = 0
+    imu_aux: int = 0
+    gnss_fixes: int = 0
+    frames_out: int = 0
+    imu_dropped: int = 0  # samples the live loop dropped before the engine (overload, stale)
+    engine_restarts: int = 0  # after a gap of RESTART_GAP_S in the IMU stream, or saturation
+    imu_saturated: int = 0  # samples withheld from the engine: an axis at its range's end
+
+
+class FusionCore:
+    """Feeds the engine, runs the address claim and the output scheduler."""
+
+    def __init__(
+        self,
+        engine: Estimator,
+        scheduler: OutputScheduler,
+        claimer: AddressClaimer,
+        imu_counters: ImuCounters | None = None,
+        make_engine: Callable[[], Estimator] | None = None,
+    ) -> None:
+        self.engine = engine
+        self._make_engine = make_engine  # for a restart; None: the engine carries on
+        self.scheduler = scheduler
+        self.claimer = claimer
+        self.guard = OutputGuard()
+        self.stats = FusionStats()
+        self._imu_counters = imu_counters or ImuCounters()
+        self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
+        self._last_sample: ImuSample | None = None
+        self._saturated = False  # saturated samples since the last good one
+        self._last_saturation_log = -math.inf
+
+    @classmethod
+    def from_config(
+        cls, config: GatewayConfig, imu_counters: ImuCounters | None = None
+    ) -> FusionCore:
+        """Engine, scheduler and claimer as the config says."""
+        name = Name(
+            identity_number=config.isobus.identity_number,
+            manufacturer_code=config.isobus.manufacturer_code,
+            ecu_instance=config.isobus.ecu_instance,
+            function_instance=config.isobus.function_instance,
+        )
+        return cls(
+            engine=config.make_engine(),
+            make_engine=config.make_engine,
+            scheduler=OutputScheduler(
+                config.output.rates_hz(), OutputEncoder(config.isobus.manufacturer_code)
+            ),
+            # Seeded by the NAME: replay is deterministic, and two units differ in identity.
+            claimer=AddressClaimer(
+                name,
+                config.isobus.preferred_address,
+                random.Random(name.value()),
+                reserved=(config.imu.bridge_source_address,),
+            ),
+            imu_counters=imu_counters,
+        )
+
+    def start(self, now: float) -> Iterator[can.Message]:
+        """Begin the address claim; nothing else is sent until it completes."""
+        return self._counted(self.claimer.start(now))
+
+    def on_input(self, item: ImuSample | ImuAux | GnssFix | BusFrame) -> Iterator[can.Message]:
+        """Dispatch one decoded input; returns the frames to send now."""
+        if isinstance(item, ImuSample):
+            return self.on_imu(item)
+        if isinstance(item, BusFrame):
+            return self.on_bus_frame(item.msg, item.t)
+        if isinstance(item, GnssFix):
+            self.stats.gnss_fixes += 1
+            self.engine.gnss(item)
+        else:
+            self.stats.imu_aux += 1  # temperature, supply, DIAG_STAT: counted by the decoder
+        return self._counted(self._silent_status(item.t))
+
+    def on_imu(self, sample: ImuSample) -> Iterator[can.Message]:
+        """Propagate with one sample, then send whatever is due at its time."""
+        self.stats.imu_samples += 1
+        if sample.saturated:
+            self.stats.imu_saturated += 1
+            if not self._saturated and sample.t - self._last_saturation_log >= 10.0:
+                log.warning(
+                    "IMU saturated at t=%.3f (an axis at the end of its range): attitude "
+                    "unknown, FAULT until the engine has re-aligned", sample.t,
+                )  # fmt: skip
+                self._last_saturation_log = sample.t
+            self._saturated = True
+            return self._counted(chain(self.claimer.poll(sample.t), self._fault(sample.t)))
+        last = self._last_sample
+        gap = last is not None and abs(sample.t - last.t) >= RESTART_GAP_S
+        if (gap or self._saturated) and self._make_engine is not None:
+            self.engine = self._make_engine()
+            self.guard.forget_track()
+            self.stats.engine_restarts += 1
+            if gap and last is not None:
+                log.warning(
+                    "IMU samples resumed %.3f s after the last one at t=%.3f: the engine "
+                    "restarts (re-aligned before anything is sent)", sample.t - last.t, last.t,
+                )  # fmt: skip
+        self._saturated = False
+        self._last_sample = sample
+        self.engine.imu(sample)
+        out: Iterable[can.Message] = self.claimer.poll(sample.t)
+        if self.claimer.claimed and self.scheduler.is_due(sample.t):
+            sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
+            out = chain(out, self.scheduler.frames(sent, self.loop_status(sample.t)))
+        return self._counted(out)
+
+    def on_bus_frame(self, msg: can.Message, now: float) -> Iterator[can.Message]:
+        """A frame received from the ISOBUS (address claims, requests, frames from our
+        address), not our own echo."""
+        return self._counted(self.claimer.on_frame(msg, now))
+
+    def _attributable(self, sol: Solution, now: float) -> Solution:
+        """``sol``, DEGRADED (or worse) while another node recently claimed our NAME or sent
+        from our address: a controller cannot tell which frames with our address are ours.
+        DEGRADED, not FAULT: our own solution is sound, and FAULT would say it is not."""
+        if self.claimer.conflict(now):
+            return replace(sol, mode=max(sol.mode, Mode.DEGRADED))
+        return sol
+
+    def poll(self, now: float) -> Iterator[can.Message]:
+        """Advance timers without an input (the live loop calls this when the IMU is silent)."""
+        return self._counted(chain(self.claimer.poll(now), self._silent_status(now)))
+
+    def _silent_status(self, now: float) -> Iterable[can.Message]:
+        """NAVGW_STATUS alone, FAULT, when no IMU sample has come for IMU_SILENT_S."""
+        last = self._last_sample
+        if last is not None and now - last.t < IMU_SILENT_S:
+            return ()
+        return self._fault(now)
+
+    def _fault(self, now: float) -> Iterable[can.Message]:
+        """NAVGW_STATUS alone at its rate: FAULT, IMU not ok, the samples missing since the
+        last good one in byte 6."""
+        if not self.claimer.claimed:
+            return ()
+        last = self._last_sample
+        sol = self.engine.solution()
+        silent = Solution(
+            t=now,
+            mode=Mode.FAULT,
+            fix_quality=sol.fix_quality,
+            gnss_ok=sol.gnss_ok,
+            is_ekf=sol.is_ekf,
+            convergence=sol.convergence,
+        )
+        loop = self.loop_status(now)
+        if last is not None:
+            missing = math.floor(min(now - last.t, LOST_WINDOW_S) / last.dt)
+            loop = replace(loop, imu_samples_lost=loop.imu_samples_lost + missing)
+        else:
+            loop = replace(loop, imu_samples_lost=255)
+        return self.scheduler.frames(silent, loop, only=(Pgn.NAVGW_STATUS,))
+
+    def _counted(self, frames: Iterable[can.Message]) -> Iterator[can.Message]:
+        for msg in frames:
+            self.stats.frames_out += 1
+            yield msg
+
+    def solution(self) -> Solution:
+        """The engine's current solution."""
+        return self.engine.solution()
+
+    def loop_status(self, t: float) -> LoopStatus:
+        """What the loop adds to the solution: address, claim state, recent IMU losses (on
+        the bus, and dropped by the live loop)."""
+        lost = self._imu_counters.lost + self.stats.imu_dropped
+        self._lost_marks.append((t, lost))
+        while self._lost_marks and self._lost_marks[0][0] < t - LOST_WINDOW_S:
+            self._lost_marks.popleft()
+        return LoopStatus(
+            source_address=self.claimer.address or DEFAULT_SOURCE_ADDRESS,
+            address_claimed=self.claimer.claimed,
+            imu_samples_lost=lost - self._lost_marks[0][1],
+        )
