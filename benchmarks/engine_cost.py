@@ -14,10 +14,12 @@ import sys
 import tempfile
 import time
 from collections.abc import Callable
+from functools import partial
 
 from drivers.samples import GnssFix, ImuSample
 from gateway.config.gateway_config import Engine, GatewayConfig, GnssSection, VehicleSection
 from gateway.estimation.solution import Estimator
+from gateway.fusion.engines import make_engine
 from gateway.offline.log_inputs import Input, LogInputs
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
@@ -61,12 +63,12 @@ def main() -> None:
         config, ekf=dataclasses.replace(config.ekf, covariance_period_s=0.0)
     )
     costs = {
-        "observer": _cost_us(config.make_engine, inputs, n_imu),
+        "observer": _cost_us(partial(make_engine, config), inputs, n_imu),
         "ekf (covariance every 50 ms)": _cost_us(
-            config.with_engine(Engine.EKF).make_engine, inputs, n_imu
+            partial(make_engine, config.with_engine(Engine.EKF)), inputs, n_imu
         ),
         "ekf (covariance every sample)": _cost_us(
-            ekf_every_sample.with_engine(Engine.EKF).make_engine, inputs, n_imu
+            partial(make_engine, ekf_every_sample.with_engine(Engine.EKF)), inputs, n_imu
         ),
     }
     print(f"{name} seed {seed}: {n_imu} IMU samples; python {sys.version.split()[0]}")

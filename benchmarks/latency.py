@@ -102,9 +102,9 @@ sys.path.insert(0, str(REPO))
 
 from drivers.imu_can import ImuDecoder  # noqa: E402
 from drivers.samples import ImuSample  # noqa: E402
+from gateway.config.driver_settings import imu_config  # noqa: E402
 from gateway.config.gateway_config import load_config  # noqa: E402
 from gateway.demo.playback import SyncedPlayback  # noqa: E402
-from gateway.offline.log_replay import imu_config  # noqa: E402
 from sim_bus.scenarios import generate, scenario_from_toml  # noqa: E402
 from sim_bus.truth import Truth  # noqa: E402
 from tests.notify_socket import NotifySocket  # noqa: E402

@@ -71,8 +71,7 @@ from dbc.fast_decode import LittleEndianDecoder
 from drivers.frame_reader import FrameReader
 from drivers.log_limit import LogLimiter
 from drivers.logs.candump import CandumpReader, read_candump
-from drivers.samples import ImuAux, ImuSample
-from gateway.estimation.attitude import dcm_from_rpy_array
+from drivers.samples import ImuAux, ImuCounters, ImuSample
 
 log = logging.getLogger(__name__)
 
@@ -82,12 +81,9 @@ ADIS_CLOCK_HZ = 819.2
 STANDARD_GRAVITY = 9.80665
 #: The bits of a 29-bit id that a frame is matched on: PGN and source address, not priority.
 PGN_SA_MASK = 0x03FFFFFF
+#: No mounting rotation: IMU axes are the body axes.
+IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 _SI_PER_UNIT = {"deg/s": math.pi / 180.0, "g": STANDARD_GRAVITY, "degC": 1.0, "V": 1.0}
-
-
-def c_b_imu_from_rpy_deg(rpy_deg: npt.ArrayLike) -> npt.NDArray[np.float64]:
-    """Mounting rotation C_b^imu = Rz(yaw) Ry(pitch) Rx(roll) (SPEC 5): v_b = C_b^imu v_imu."""
-    return dcm_from_rpy_array(np.deg2rad(np.asarray(rpy_deg, dtype=float)))[0]
 
 
 def sample_period_s(dec: int) -> float:
@@ -152,34 +148,13 @@ class ImuCanConfig:
     """Driver settings. Times in seconds of the frames' (host) clock."""
 
     ids: ImuCanIds = field(default_factory=ImuCanIds.for_source_address)
-    mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    c_b_imu: tuple[tuple[float, ...], ...] = IDENTITY  # mounting: v_b = C v_imu
     bridge_latency_s: float = 0.0005  # nominal sample instant -> frame arrival
     anchor_tau_s: float = 10.0  # how slowly the time anchor may rise (clock drift)
     reanchor_gap_s: float = 0.5  # an earlier arrival after such a gap counts as a re-anchor
     wrap_check_s: float = 0.25  # arrivals late by over half a SEQ wrap this long: missed wraps
     pair_timeout_s: float = 0.05  # a half (gyro or accel) waits this long for its partner
     warn_interval_s: float = 10.0  # at most one warning per kind per this much frame time
-
-
-@dataclass
-class ImuCounters:
-    """What the decoder has seen. ``samples + lost + out_of_order`` spans the SEQ stream."""
-
-    frames: int = 0  # frames with one of our ids
-    ignored: int = 0  # other frames the decoder was fed
-    samples: int = 0  # ImuSample emitted
-    aux: int = 0  # ImuAux emitted
-    lost: int = 0  # samples that never arrived (SEQ gaps not filled later)
-    duplicates: int = 0  # samples whose SEQ was already emitted
-    out_of_order: int = 0  # samples that arrived after a later one (dropped, not emitted)
-    malformed: int = 0  # our ids with wrong DLC, remote/standard frame or bad reserved bits
-    unpaired: int = 0  # gyro or accel halves whose partner never came
-    alarms: int = 0  # samples with an EA bit set
-    saturated: int = 0  # samples with some axis at the end of its register range
-    no_new_data: int = 0  # samples with an ND bit clear
-    reanchors: int = 0  # time anchor restarts (DEC change, early arrivals, missed SEQ wraps)
-    seq_errors: int = 0  # samples on time for the next SEQ but carrying another: taken as it
-    seq_restarts: int = 0  # the bridge's SEQ counter restarted: counted from its new value
 
 
 class WarningKind(Enum):
@@ -248,7 +223,7 @@ class ImuDecoder:
     def __init__(self, config: ImuCanConfig | None = None) -> None:
         self.config = config or ImuCanConfig()
         self.counters = ImuCounters()
-        self.c_b_imu = c_b_imu_from_rpy_deg(self.config.mounting_rpy_deg)
+        self.c_b_imu = np.array(self.config.c_b_imu, dtype=float)
         db = dbc.load(dbc.IMU_DBC)
         self._frames = {
             i & PGN_SA_MASK: (f, LittleEndianDecoder(db.get_message_by_name(f.value)), i)

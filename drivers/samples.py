@@ -123,3 +123,25 @@ class GnssFix:
             self.sog_mps * float(np.cos(self.cog_rad)),
             self.sog_mps * float(np.sin(self.cog_rad)),
         )
+
+
+@dataclass
+class ImuCounters:
+    """What the IMU decoder (:mod:`drivers.imu_can`) has seen. ``samples + lost +
+    out_of_order`` spans the SEQ stream."""
+
+    frames: int = 0  # frames with one of our ids
+    ignored: int = 0  # other frames the decoder was fed
+    samples: int = 0  # ImuSample emitted
+    aux: int = 0  # ImuAux emitted
+    lost: int = 0  # samples that never arrived (SEQ gaps not filled later)
+    duplicates: int = 0  # samples whose SEQ was already emitted
+    out_of_order: int = 0  # samples that arrived after a later one (dropped, not emitted)
+    malformed: int = 0  # our ids with wrong DLC, remote/standard frame or bad reserved bits
+    unpaired: int = 0  # gyro or accel halves whose partner never came
+    alarms: int = 0  # samples with an EA bit set
+    saturated: int = 0  # samples with some axis at the end of its register range
+    no_new_data: int = 0  # samples with an ND bit clear
+    reanchors: int = 0  # time anchor restarts (DEC change, early arrivals, missed SEQ wraps)
+    seq_errors: int = 0  # samples on time for the next SEQ but carrying another: taken as it
+    seq_restarts: int = 0  # the bridge's SEQ counter restarted: counted from its new value

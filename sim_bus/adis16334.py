@@ -38,7 +38,8 @@ import numpy as np
 import numpy.typing as npt
 from scipy.signal import lfilter
 
-from drivers.imu_can import ADIS_CLOCK_HZ, STANDARD_GRAVITY, DiagStat, c_b_imu_from_rpy_deg
+from drivers.imu_can import ADIS_CLOCK_HZ, STANDARD_GRAVITY, DiagStat
+from gateway.estimation.attitude import dcm_from_rpy_deg
 
 Array = npt.NDArray[np.float64]
 
@@ -173,7 +174,7 @@ def simulate(
     t = np.asarray(t, dtype=float)
     n = len(t)
     dt = config.dt_s
-    c_b_imu = c_b_imu_from_rpy_deg(config.imu_mounting_rpy_deg)
+    c_b_imu = dcm_from_rpy_deg(config.imu_mounting_rpy_deg)
 
     def turn_on(given: tuple[float, float, float] | None, sigma: float) -> Array:
         return np.asarray(given, dtype=float) if given is not None else rng.normal(0, sigma, 3)

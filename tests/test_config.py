@@ -30,7 +30,7 @@ def test_spec5_vehicle_keys_reach_the_engine_config() -> None:
         }
     )
     for engine in Engine:
-        tuning = cfg.with_engine(engine).make_engine().cfg  # type: ignore[attr-defined]
+        tuning = cfg.with_engine(engine).engine_settings()
         assert tuning.antenna_lever_arm_m == (0.0, 0.0, -3.0)
         assert tuning.imu_lever_arm_m == (0.0, 0.0, -1.0)
         assert tuning.receiver_latency_s == 0.08

@@ -6,6 +6,7 @@ import math
 from collections.abc import Callable
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
 from gateway.estimation.attitude import dcm_from_rpy, exp_so3
@@ -143,3 +144,13 @@ def test_predict_keeps_p_symmetric_positive_definite() -> None:
 def test_attitude_error_inverts_the_reset() -> None:
     phi = np.array([0.01, -0.02, 0.03])
     assert_allclose(attitude_error(exp_so3(phi) @ C_BN, C_BN), phi, atol=1e-12)
+
+
+@pytest.mark.parametrize("dof", [1, 2, 3, 4, 5, 6])
+@pytest.mark.parametrize("gate_sigma", [2.0, 3.0, 5.0])
+def test_nis_gate_matches_scipy(dof: int, gate_sigma: float) -> None:
+    """The EKF's chi-square gate without scipy on the ECU: scipy's value to 1e-12."""
+    from scipy.stats import chi2, norm
+
+    expected = float(chi2.isf(2.0 * norm.sf(gate_sigma), dof))
+    assert nis_gate(gate_sigma, dof) == pytest.approx(expected, rel=1e-12)

@@ -17,6 +17,8 @@ from hypothesis import strategies as st
 from drivers.imu_can import ImuCanConfig, ImuCanIds, ImuDecoder, read_bus, read_log
 from drivers.logs.candump import read_candump, write_candump
 from drivers.samples import ImuAux, ImuSample
+from gateway.config.driver_settings import imu_config
+from gateway.config.gateway_config import GatewayConfig, VehicleSection
 from sim_bus.adis16334 import (
     ACCEL_LSB_MPS2,
     DEG,
@@ -114,7 +116,8 @@ def test_mounting_rotation_from_config() -> None:
         gyro_arw_rad_per_sqrt_s=0.0,
         accel_vrw_mps_per_sqrt_s=0.0,
     )
-    dec = ImuDecoder(ImuCanConfig(mounting_rpy_deg=(10.0, -5.0, 30.0)))
+    mounted = GatewayConfig(vehicle=VehicleSection(imu_mounting_rpy_deg=(10.0, -5.0, 30.0)))
+    dec = ImuDecoder(imu_config(mounted))  # the config key's path to the driver
     s = samples([i for m in msgs for i in dec.feed(m)])
     np.testing.assert_allclose(
         s[0].w_ib_b, np.array([3.0, -1.5, 12.0]) * DEG + out.bias_g_rps[0], atol=3 * GYRO_LSB_RPS

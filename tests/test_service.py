@@ -280,5 +280,5 @@ def test_config_example_checks_clean(tmp_path: Path, capsys: pytest.CaptureFixtu
 @pytest.mark.parametrize("command", ["run", "demo", "config", "replay"])
 def test_every_command_has_help(command: str, capsys: pytest.CaptureFixture[str]) -> None:
     with pytest.raises(SystemExit) as exit_:
-        build_parser().parse_args([command, "--help"])
+        build_parser([command]).parse_args([command, "--help"])
     assert exit_.value.code == 0 and "usage: navgw " + command in capsys.readouterr().out

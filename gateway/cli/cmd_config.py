@@ -11,11 +11,13 @@ from gateway.config.gateway_config import example_toml, load_config
 from gateway.service.bus_links import BusPlan
 
 
-def add_subparser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_subparser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser], help_text: str
+) -> None:
     """Register ``config``."""
     p = subparsers.add_parser(
         "config",
-        help="print an example config, or check a config file",
+        help=help_text,
         description="--example prints a complete config with every default and its meaning; "
         "--check FILE validates FILE as 'navgw run' would (exit 0 if usable, 2 with a "
         "message naming the key if not).",

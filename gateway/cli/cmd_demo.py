@@ -22,11 +22,13 @@ SERVICE_LOG = "navgw-demo.log"
 PLAIN_EVERY = 4  # without a terminal, print every 4th view (every 2 s)
 
 
-def add_subparser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_subparser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser], help_text: str
+) -> None:
     """Register ``demo``."""
     p = subparsers.add_parser(
         "demo",
-        help="watch the gateway navigate a simulated field run (no hardware needed)",
+        help=help_text,
         description="Simulate a field run, play its IMU frames onto a virtual CAN bus and its "
         "NMEA sentences onto a pseudo-terminal faster than real time, run the live gateway "
         "service on them, and show its estimates next to the simulator's truth. Ends with "

@@ -14,11 +14,13 @@ from gateway.offline.log_inputs import Input, LogInputs
 from gateway.offline.log_replay import ReplaySummary, replay
 
 
-def add_subparser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_subparser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser], help_text: str
+) -> None:
     """Register ``replay``."""
     p = subparsers.add_parser(
         "replay",
-        help="run recorded logs through the gateway, write its output frames",
+        help=help_text,
         description="Read an IMU CAN log (candump -L) and an NMEA log, merge them by time, run "
         "the live fusion code with the clock taken from the logs, and write every frame the "
         "gateway would have sent (candump -L) to OUT. Deterministic.",

@@ -18,11 +18,13 @@ JOURNAL_FORMAT = "%(levelname)s %(name)s: %(message)s"
 TERMINAL_FORMAT = "%(asctime)s " + JOURNAL_FORMAT
 
 
-def add_subparser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_subparser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser], help_text: str
+) -> None:
     """Register ``run``."""
     p = subparsers.add_parser(
         "run",
-        help="run the live gateway: IMU and ISOBUS on CAN, GNSS on a serial port",
+        help=help_text,
         description="Read the IMU bridge (CAN) and the GNSS receiver (serial NMEA), run the "
         "fusion loop and send its frames on the ISOBUS until SIGTERM or SIGINT (exit 0). "
         "Missing devices are waited for; under systemd (Type=notify) it reports READY, "

@@ -1,7 +1,7 @@
 """The ``navgw`` command line: a thin layer over library functions that tests call directly.
 
-Each command lives in its own module with ``add_subparser(subparsers)``, which registers the
-command and sets ``func(args) -> int`` on the parsed namespace.
+Each command lives in its own module with ``add_subparser(subparsers, help_text)``, which
+registers the command and sets ``func(args) -> int`` on the parsed namespace.
 """
 
 from __future__ import annotations
@@ -11,21 +11,37 @@ import importlib
 import logging
 import sys
 from collections.abc import Sequence
+from types import ModuleType
 
 from gateway import __version__
 
-#: Modules that each contribute one sub-command, in the order ``--help`` lists them.
-COMMAND_MODULES = (
-    "gateway.cli.cmd_run",
-    "gateway.cli.cmd_demo",
-    "gateway.cli.cmd_replay",
-    "gateway.cli.cmd_config",
-    "sim_bus.sim_cli",
-)
+#: Sub-commands in the order ``--help`` lists them: the module that implements each, and its
+#: one-line help. Only the module of the command being run is imported: `navgw run` and
+#: `navgw --help` load neither the simulator nor scipy (tests/test_cli_imports.py).
+COMMANDS = {
+    "run": (
+        "gateway.cli.cmd_run",
+        "run the live gateway: IMU and ISOBUS on CAN, GNSS on a serial port",
+    ),
+    "demo": (
+        "gateway.cli.cmd_demo",
+        "watch the gateway navigate a simulated field run (no hardware needed)",
+    ),
+    "replay": (
+        "gateway.cli.cmd_replay",
+        "run recorded logs through the gateway, write its output frames",
+    ),
+    "config": ("gateway.cli.cmd_config", "print an example config, or check a config file"),
+    "sim": ("gateway.cli.cmd_sim", "simulate a field run: IMU CAN log, NMEA log and truth"),
+}
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """The full argument parser, with every sub-command registered."""
+#: Off-vehicle dependencies and the extra that installs each (pyproject.toml).
+OPTIONAL = {"scipy": "sim", "matplotlib": "plots"}
+
+
+def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:
+    """The argument parser: every sub-command listed, the one named in ``argv`` in full."""
     parser = argparse.ArgumentParser(
         prog="navgw",
         description="GNSS/IMU gateway for precision agriculture (Tereshkov bias observer, "
@@ -34,14 +50,33 @@ def build_parser() -> argparse.ArgumentParser:
     parser.add_argument("--version", action="version", version=f"navgw {__version__}")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output")
     subparsers = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for name in COMMAND_MODULES:
-        importlib.import_module(name).add_subparser(subparsers)
+    command = next((a for a in argv if not a.startswith("-")), None)
+    for name, (module, help_text) in COMMANDS.items():
+        if name == command:
+            _load(module, name).add_subparser(subparsers, help_text)
+        else:
+            subparsers.add_parser(name, help=help_text)
     return parser
+
+
+def _load(module: str, command: str) -> ModuleType:
+    """The module of ``command``; a missing optional dependency ends with how to get it."""
+    try:
+        return importlib.import_module(module)
+    except ModuleNotFoundError as err:
+        if err.name is None or err.name.split(".")[0] not in OPTIONAL:
+            raise
+        extra = OPTIONAL[err.name.split(".")[0]]
+        raise SystemExit(
+            f"navgw {command} needs {err.name}, which the lean (ECU) install leaves out: "
+            f"pip install 'navgw[{extra}]'"
+        ) from err
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     """Entry point of the ``navgw`` console script; returns the exit status."""
-    parser = build_parser()
+    argv = sys.argv[1:] if argv is None else argv
+    parser = build_parser(argv)
     args = parser.parse_args(argv)
     level = (logging.WARNING, logging.INFO, logging.DEBUG)[min(args.verbose, 2)]
     logging.basicConfig(

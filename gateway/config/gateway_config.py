@@ -23,11 +23,8 @@ from gateway.config.config_schema import (
     source_comments,
 )
 from gateway.estimation.ekf.ekf_config import EkfConfig
-from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.epoch_clock import EpochTime
 from gateway.estimation.observer.observer_config import ObserverConfig
-from gateway.estimation.observer.observer_engine import ObserverEngine
-from gateway.estimation.solution import Estimator
 from gateway.isobus.j1939 import DEFAULT_MANUFACTURER_CODE, DEFAULT_SOURCE_ADDRESS, Pgn
 from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, MAX_RATE_HZ
 
@@ -237,11 +234,11 @@ class GatewayConfig:
             return None
         return "[vehicle] antenna_lever_arm_m is zero: the reference point is the antenna"
 
-    def make_engine(self) -> Estimator:
-        """The configured estimator, with this config's geometry and timing."""
+    def engine_settings(self) -> ObserverConfig | EkfConfig:
+        """The configured engine's tuning, with this config's geometry and timing."""
         if self.estimator.engine is Engine.EKF:
-            return EkfEngine(dataclasses.replace(self.ekf, **self.shared()))
-        return ObserverEngine(dataclasses.replace(self.observer, **self.shared()))
+            return dataclasses.replace(self.ekf, **self.shared())
+        return dataclasses.replace(self.observer, **self.shared())
 
 
 def config_from_table(table: dict[str, Any], where: str = "config") -> GatewayConfig:

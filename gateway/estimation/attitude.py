@@ -50,6 +50,12 @@ def dcm_from_rpy_array(rpy_rad: npt.ArrayLike) -> Array:
     )
 
 
+def dcm_from_rpy_deg(rpy_deg: npt.ArrayLike) -> Array:
+    """C = Rz(yaw) Ry(pitch) Rx(roll), shape (3, 3), from roll, pitch, yaw in degrees (the
+    IMU mounting of SPEC 5: v_b = C v_imu)."""
+    return dcm_from_rpy_array(np.deg2rad(np.asarray(rpy_deg, dtype=float)))[0]
+
+
 def dcm_from_rpy(roll_rad: float, pitch_rad: float, yaw_rad: float) -> Array:
     """C_b^n = Rz(yaw) Ry(pitch) Rx(roll), shape (3, 3)."""
     return dcm_from_rpy_array((roll_rad, pitch_rad, yaw_rad))[0]

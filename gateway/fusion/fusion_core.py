@@ -30,14 +30,15 @@ import random
 from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
+from functools import partial
 from itertools import chain
 
 import can
 
-from drivers.imu_can import ImuCounters
-from drivers.samples import GnssFix, ImuAux, ImuSample
+from drivers.samples import GnssFix, ImuAux, ImuCounters, ImuSample
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.solution import Estimator, Mode, Solution
+from gateway.fusion.engines import make_engine
 from gateway.fusion.output_guard import OutputGuard
 from gateway.isobus.address_claim import AddressClaimer, Name
 from gateway.isobus.j1939 import DEFAULT_SOURCE_ADDRESS, Pgn
@@ -112,8 +113,8 @@ class FusionCore:
             function_instance=config.isobus.function_instance,
         )
         return cls(
-            engine=config.make_engine(),
-            make_engine=config.make_engine,
+            engine=make_engine(config),
+            make_engine=partial(make_engine, config),
             scheduler=OutputScheduler(
                 config.output.rates_hz(), OutputEncoder(config.isobus.manufacturer_code)
             ),

@@ -11,9 +11,10 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
-from drivers.imu_can import ImuCanConfig, ImuCanIds, ImuCounters
 from drivers.logs.candump import CandumpWriter
 from drivers.nmea import NmeaCounters
+from drivers.samples import ImuCounters
+from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import GatewayConfig
 from gateway.fusion.fusion_core import FusionCore, FusionStats
 from gateway.offline.log_inputs import Input, LogInputs
@@ -38,14 +39,6 @@ class ReplaySummary:
     def speedup(self) -> float:
         """Log time over wall time."""
         return self.log_span_s / self.wall_s if self.wall_s > 0 else float("inf")
-
-
-def imu_config(config: GatewayConfig) -> ImuCanConfig:
-    """The IMU driver settings of a gateway config (bridge address, mounting)."""
-    return ImuCanConfig(
-        ids=ImuCanIds.for_source_address(config.imu.bridge_source_address),
-        mounting_rpy_deg=config.vehicle.imu_mounting_rpy_deg,
-    )
 
 
 def replay(

@@ -56,10 +56,10 @@ from drivers.imu_can import PGN_SA_MASK, ImuDecoder
 from drivers.log_limit import LogLimiter
 from drivers.nmea import NmeaDecoder
 from drivers.samples import GnssFix, ImuAux, ImuSample
+from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import GatewayConfig
 from gateway.fusion.fusion_core import FusionCore
 from gateway.isobus.address_claim import ClaimState
-from gateway.offline.log_replay import imu_config
 from gateway.service.bus_links import BusPlan, BusSpec, EchoFilter, claim_filters, is_bus_down
 from gateway.service.input_recording import InputRecorder
 from gateway.service.sdnotify import SdNotifier

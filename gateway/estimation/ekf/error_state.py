@@ -34,7 +34,6 @@ from functools import cache
 
 import numpy as np
 import numpy.typing as npt
-from scipy.stats import chi2, norm
 
 from gateway.estimation.attitude import (
     Mat9,
@@ -73,8 +72,42 @@ _I15 = np.eye(N_STATES)
 
 @cache
 def nis_gate(gate_sigma: float, dof: int) -> float:
-    """Chi-square threshold with the tail probability of a ``gate_sigma`` normal event."""
-    return float(chi2.isf(2.0 * norm.sf(gate_sigma), dof))
+    """Chi-square threshold with the tail probability of a ``gate_sigma`` normal event.
+
+    Solves Q(dof/2, x/2) = erfc(gate_sigma / sqrt 2) for x by bisection, with the closed form
+    of the chi-square survival function for integer and half-integer shapes (no scipy on
+    the ECU; dof 1 gives gate_sigma^2 exactly).
+    """
+    tail = math.erfc(gate_sigma / math.sqrt(2.0))
+    lo, hi = 0.0, 1.0
+    while chi2_sf(hi, dof) > tail:
+        hi *= 2.0
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if chi2_sf(mid, dof) > tail:
+            lo = mid
+        else:
+            hi = mid
+    return 0.5 * (lo + hi)
+
+
+def chi2_sf(x: float, dof: int) -> float:
+    """P(chi-square with ``dof`` degrees of freedom > x): the regularised upper incomplete
+    gamma Q(dof/2, x/2) in closed form."""
+    h = 0.5 * x
+    if dof % 2 == 0:
+        term, total = 1.0, 1.0
+        for k in range(1, dof // 2):
+            term *= h / k
+            total += term
+        return math.exp(-h) * total
+    total = math.erfc(math.sqrt(h))
+    term = math.sqrt(h) / math.gamma(1.5)
+    for k in range(dof // 2):
+        if k:
+            term *= h / (k + 0.5)
+        total += math.exp(-h) * term
+    return total
 
 
 @dataclass(frozen=True, slots=True)

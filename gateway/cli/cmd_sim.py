@@ -12,12 +12,14 @@ from gateway.config.config_schema import ConfigError, load_toml
 from sim_bus.scenarios import SCENARIOS, Scenario, SimRun, generate, scenario_from_toml
 
 
-def add_subparser(subparsers: argparse._SubParsersAction[argparse.ArgumentParser]) -> None:
+def add_subparser(
+    subparsers: argparse._SubParsersAction[argparse.ArgumentParser], help_text: str
+) -> None:
     """Register ``sim``."""
     listing = "\n".join(f"  {name:20s} {sc.description}" for name, sc in SCENARIOS.items())
     p = subparsers.add_parser(
         "sim",
-        help="simulate a field run: IMU CAN log, NMEA log and truth",
+        help=help_text,
         description="Simulate a field run and write imu.log (candump -L), gnss.nmea "
         "(host-stamped NMEA), truth.npz and navgw.toml (the gateway config of the simulated "
         "vehicle, for navgw replay --config) into the --out directory.\n\nscenarios:\n" + listing,
