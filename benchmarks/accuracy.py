@@ -30,14 +30,16 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from drivers.samples import GnssFix, ImuAux, ImuSample
+from drivers.units import DEG_TO_RAD
 from gateway.demo.accuracy import Accuracy, Trace, evaluate, first_time, record
 from gateway.demo.baselines import ENGINES, RunSetup
 from gateway.estimation.observer.observer_engine import ObserverEngine
-from gateway.offline.log_inputs import Input, LogInputs
+from gateway.fusion.fusion_core import BusFrame
+from gateway.offline.log_inputs import LogInputs
 from sim_bus.scenarios import SCENARIOS, Scenario, generate
 from sim_bus.truth import Truth
 
-DEG = math.pi / 180.0
 #: Runs on which the converged part starts at a fixed time (the targets' "after 10 minutes").
 FIXED_CONVERGED_S = {"field": 600.0, "gnss-outage": 600.0}
 DEFAULT_ENGINES = ("observer", "observer-no-bias", "level", "mahony", "madgwick")
@@ -49,7 +51,7 @@ class SimRunData:
 
     scenario: str
     seed: int
-    inputs: list[Input]
+    inputs: list[ImuSample | ImuAux | GnssFix]
     truth: Truth
     setup: RunSetup
 
@@ -61,7 +63,8 @@ def simulate_inputs(scenario: Scenario, seed: int, minutes: float | None = None)
     """
     with tempfile.TemporaryDirectory(prefix="navgw-acc-") as tmp:
         run = generate(scenario, tmp, seed)
-        inputs = list(LogInputs(run.imu_log, run.gnss_log))
+        # what the engines take: other nodes' frames on the bus (BusFrame) are not for them
+        inputs = [x for x in LogInputs(run.imu_log, run.gnss_log) if not isinstance(x, BusFrame)]
         truth = Truth.load(run.truth_file)
     if minutes is not None:
         t_end = float(truth.t[0]) + 60.0 * minutes
@@ -117,21 +120,21 @@ class Column:
 
 
 COLUMNS = (
-    Column("bgx fin", "bias_g_final_rps", 0, 1 / DEG, 4, True),
-    Column("bgy fin", "bias_g_final_rps", 1, 1 / DEG, 4, True),
-    Column("bgz fin", "bias_g_final_rps", 2, 1 / DEG, 4, True),
-    Column("bgx rms", "bias_g_rms_rps", 0, 1 / DEG, 4),
-    Column("bgy rms", "bias_g_rms_rps", 1, 1 / DEG, 4),
+    Column("bgx fin", "bias_g_final_rps", 0, 1 / DEG_TO_RAD, 4, True),
+    Column("bgy fin", "bias_g_final_rps", 1, 1 / DEG_TO_RAD, 4, True),
+    Column("bgz fin", "bias_g_final_rps", 2, 1 / DEG_TO_RAD, 4, True),
+    Column("bgx rms", "bias_g_rms_rps", 0, 1 / DEG_TO_RAD, 4),
+    Column("bgy rms", "bias_g_rms_rps", 1, 1 / DEG_TO_RAD, 4),
     Column("bax fin", "bias_a_final_mps2", 0, 1.0, 4, True),
     Column("bay fin", "bias_a_final_mps2", 1, 1.0, 4, True),
     Column("bax rms", "bias_a_rms_mps2", 0, 1.0, 4),
     Column("bay rms", "bias_a_rms_mps2", 1, 1.0, 4),
-    Column("roll rms", "rpy_rms_rad", 0, 1 / DEG, 3),
-    Column("roll max", "rpy_max_rad", 0, 1 / DEG, 3),
-    Column("pitch rms", "rpy_rms_rad", 1, 1 / DEG, 3),
-    Column("pitch max", "rpy_max_rad", 1, 1 / DEG, 3),
-    Column("yaw rms", "rpy_rms_rad", 2, 1 / DEG, 3),
-    Column("yaw max", "rpy_max_rad", 2, 1 / DEG, 3),
+    Column("roll rms", "rpy_rms_rad", 0, 1 / DEG_TO_RAD, 3),
+    Column("roll max", "rpy_max_rad", 0, 1 / DEG_TO_RAD, 3),
+    Column("pitch rms", "rpy_rms_rad", 1, 1 / DEG_TO_RAD, 3),
+    Column("pitch max", "rpy_max_rad", 1, 1 / DEG_TO_RAD, 3),
+    Column("yaw rms", "rpy_rms_rad", 2, 1 / DEG_TO_RAD, 3),
+    Column("yaw max", "rpy_max_rad", 2, 1 / DEG_TO_RAD, 3),
     Column("ref rms cm", "ref_h_rms_m", None, 100.0, 2),
     Column("ref(att) rms cm", "ref_from_att_h_rms_m", None, 100.0, 2),
     Column("ref(att) max cm", "ref_from_att_h_max_m", None, 100.0, 2),
@@ -192,9 +195,9 @@ def paper_scenario(base: str = "field") -> Scenario:
     imu = replace(
         sc.imu,
         gyro_turn_on_bias_rps=(
-            PAPER_GYRO_BIAS_DPS[0] * DEG,
-            PAPER_GYRO_BIAS_DPS[1] * DEG,
-            PAPER_GYRO_BIAS_DPS[2] * DEG,
+            PAPER_GYRO_BIAS_DPS[0] * DEG_TO_RAD,
+            PAPER_GYRO_BIAS_DPS[1] * DEG_TO_RAD,
+            PAPER_GYRO_BIAS_DPS[2] * DEG_TO_RAD,
         ),
         accel_turn_on_bias_mps2=PAPER_ACCEL_BIAS_MPS2,
     )
@@ -219,9 +222,9 @@ def paper_experiment(seed: int) -> str:
     ref = traces["nominal"]
     t0 = float(data.truth.t[0])
     sel = ref.t - t0 >= 600.0
-    true_g = data.truth.bias_g_rps[-1] / DEG
+    true_g = data.truth.bias_g_rps[-1] / DEG_TO_RAD
     true_a = data.truth.bias_a_mps2[-1]
-    est_g = ref.bias_g_rps[-1] / DEG
+    est_g = ref.bias_g_rps[-1] / DEG_TO_RAD
     est_a = ref.bias_a_mps2[-1]
     lines = [
         f"**Paper experiment**, {data.scenario}, seed {seed}: known turn-on biases gyro "
@@ -233,12 +236,12 @@ def paper_experiment(seed: int) -> str:
         f"{true_a[1]:.4f} |",
         f"| estimated at the end | {est_g[0]:.4f} | {est_g[1]:.4f} | {est_a[0]:.4f} | "
         f"{est_a[1]:.4f} |",
-        f"| RMS error after 600 s | {acc.bias_g_rms_rps[0] / DEG:.4f} | "
-        f"{acc.bias_g_rms_rps[1] / DEG:.4f} | {acc.bias_a_rms_mps2[0]:.4f} | "
+        f"| RMS error after 600 s | {acc.bias_g_rms_rps[0] / DEG_TO_RAD:.4f} | "
+        f"{acc.bias_g_rms_rps[1] / DEG_TO_RAD:.4f} | {acc.bias_a_rms_mps2[0]:.4f} | "
         f"{acc.bias_a_rms_mps2[1]:.4f} |",
         "",
-        f"roll/pitch RMS after 600 s: {acc.rpy_rms_rad[0] / DEG:.3f} / "
-        f"{acc.rpy_rms_rad[1] / DEG:.3f} deg; gyro x/y converged at "
+        f"roll/pitch RMS after 600 s: {acc.rpy_rms_rad[0] / DEG_TO_RAD:.3f} / "
+        f"{acc.rpy_rms_rad[1] / DEG_TO_RAD:.3f} deg; gyro x/y converged at "
         f"{acc.gyro_xy_converged_s or math.nan:.0f} s, accel x/y at "
         f"{acc.accel_xy_converged_s or math.nan:.0f} s\n",
         "**Robustness** (+/-20 %): largest |estimate - nominal estimate| of the x/y biases",
@@ -250,7 +253,7 @@ def paper_experiment(seed: int) -> str:
     for name, tr in traces.items():
         if name == "nominal":
             continue
-        dg = np.abs(tr.bias_g_rps[:, :2] - ref.bias_g_rps[:, :2]) / DEG
+        dg = np.abs(tr.bias_g_rps[:, :2] - ref.bias_g_rps[:, :2]) / DEG_TO_RAD
         da = np.abs(tr.bias_a_mps2[:, :2] - ref.bias_a_mps2[:, :2])
         lines.append(
             f"| {name} | {dg[sel].max():.4f} | {dg[-1].max():.4f} | {da[sel].max():.4f} | "

@@ -13,7 +13,6 @@ matplotlib is an optional extra (``pip install navgw[plots]``), imported here on
 from __future__ import annotations
 
 import argparse
-import math
 import sys
 from collections.abc import Sequence
 from pathlib import Path
@@ -25,11 +24,10 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from accuracy import paper_scenario, run_engines, simulate_inputs
 
+from drivers.units import DEG_TO_RAD
 from gateway.demo.accuracy import Trace, attitude_error_rad, truth_at
 from sim_bus.scenarios import SCENARIOS
 from sim_bus.truth import Truth
-
-DEG = math.pi / 180.0
 
 
 def plots(traces: dict[str, Trace], truth: Truth, name: str, out_dir: Path) -> list[Path]:
@@ -44,7 +42,7 @@ def plots(traces: dict[str, Trace], truth: Truth, name: str, out_dir: Path) -> l
     tt = (truth.t - t0)[::20]
     written = []
     for what, col, scale, unit in (
-        ("gyro_bias", "bias_g_rps", 1 / DEG, "deg/s"),
+        ("gyro_bias", "bias_g_rps", 1 / DEG_TO_RAD, "deg/s"),
         ("accel_bias", "bias_a_mps2", 1.0, "m/s$^2$"),
     ):
         fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
@@ -63,7 +61,7 @@ def plots(traces: dict[str, Trace], truth: Truth, name: str, out_dir: Path) -> l
         written.append(_save(fig, out_dir / f"{name}_{what}.png"))
     fig, axes = plt.subplots(2, 1, figsize=(8, 5), sharex=True)
     for eng, tr in traces.items():
-        err = attitude_error_rad(tr.rpy_rad, truth_at(truth, tr.t).rpy_rad) / DEG
+        err = attitude_error_rad(tr.rpy_rad, truth_at(truth, tr.t).rpy_rad) / DEG_TO_RAD
         for i, ax in enumerate(axes):
             ax.plot(tr.t - t0, err[:, i], lw=0.7, label=eng)
     for i, ax in enumerate(axes):

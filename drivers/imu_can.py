@@ -72,18 +72,18 @@ from drivers.frame_reader import FrameReader
 from drivers.log_limit import LogLimiter
 from drivers.logs.candump import CandumpReader, read_candump
 from drivers.samples import ImuAux, ImuCounters, ImuSample
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 
 log = logging.getLogger(__name__)
 
 #: Internal sample clock of the ADIS16334; output rate is this / 2^DEC.
 ADIS_CLOCK_HZ = 819.2
 #: 1 g as the accelerometer's mg LSB uses it (SPEC 1).
-STANDARD_GRAVITY = 9.80665
 #: The bits of a 29-bit id that a frame is matched on: PGN and source address, not priority.
 PGN_SA_MASK = 0x03FFFFFF
 #: No mounting rotation: IMU axes are the body axes.
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
-_SI_PER_UNIT = {"deg/s": math.pi / 180.0, "g": STANDARD_GRAVITY, "degC": 1.0, "V": 1.0}
+_SI_PER_UNIT = {"deg/s": DEG_TO_RAD, "g": GRAVITY_MPS2, "degC": 1.0, "V": 1.0}
 
 
 def sample_period_s(dec: int) -> float:

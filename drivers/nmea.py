@@ -47,11 +47,11 @@ import pynmea2
 from drivers.log_limit import LogLimiter
 from drivers.logs.nmea_log import NmeaLogReader, read_nmea_log
 from drivers.samples import FixQuality, GnssFix
+from drivers.units import SECONDS_PER_DAY
 
 log = logging.getLogger(__name__)
 
 KNOT_MPS = 1852.0 / 3600.0
-SECONDS_PER_DAY = 86400.0
 TWO_PI = 2.0 * math.pi
 #: Unknown sentence types counted one by one; any further one is counted under OTHER_TYPES.
 MAX_COUNTED_TYPES = 64

@@ -38,16 +38,16 @@ import numpy as np
 import numpy.typing as npt
 from scipy.signal import lfilter
 
-from drivers.imu_can import ADIS_CLOCK_HZ, STANDARD_GRAVITY, DiagStat
+from drivers.imu_can import ADIS_CLOCK_HZ, GRAVITY_MPS2, DiagStat
+from drivers.units import DEG_TO_RAD
 from gateway.estimation.attitude import dcm_from_rpy_deg
 
 Array = npt.NDArray[np.float64]
 
-DEG = np.pi / 180.0
-MG = STANDARD_GRAVITY * 1e-3
+MG = GRAVITY_MPS2 * 1e-3
 SQRT_HOUR = 60.0  # sqrt(3600 s)
 
-GYRO_LSB_RPS = 0.05 * DEG  # XGYRO_OUT.. : 0.05 deg/s per LSB
+GYRO_LSB_RPS = 0.05 * DEG_TO_RAD  # XGYRO_OUT.. : 0.05 deg/s per LSB
 ACCEL_LSB_MPS2 = MG  # XACCL_OUT.. : 1 mg per LSB
 TEMP_LSB_C = 0.06785  # TEMP_OUT, 0 = 25 degC
 TEMP_ZERO_C = 25.0
@@ -67,8 +67,12 @@ class EngineVibration:
     frequency_hz: float = 28.0
     accel_amplitude_mps2: tuple[float, float, float] = (0.3, 0.2, 0.6)
     accel_broadband_mps2: float = 0.15  # 1-sigma per sample
-    gyro_amplitude_rps: tuple[float, float, float] = (0.2 * DEG, 0.2 * DEG, 0.1 * DEG)
-    gyro_broadband_rps: float = 0.05 * DEG
+    gyro_amplitude_rps: tuple[float, float, float] = (
+        0.2 * DEG_TO_RAD,
+        0.2 * DEG_TO_RAD,
+        0.1 * DEG_TO_RAD,
+    )
+    gyro_broadband_rps: float = 0.05 * DEG_TO_RAD
 
 
 @dataclass(frozen=True)
@@ -79,15 +83,15 @@ class Adis16334Config:
     imu_mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_turn_on_bias_rps: tuple[float, float, float] | None = None  # IMU axes; None = random
     accel_turn_on_bias_mps2: tuple[float, float, float] | None = None
-    gyro_turn_on_sigma_rps: float = 0.1 * DEG
+    gyro_turn_on_sigma_rps: float = 0.1 * DEG_TO_RAD
     accel_turn_on_sigma_mps2: float = 5.0 * MG
-    gyro_bias_stability_rps: float = 0.007 * DEG
+    gyro_bias_stability_rps: float = 0.007 * DEG_TO_RAD
     accel_bias_stability_mps2: float = 0.1 * MG
     bias_correlation_time_s: float = 100.0
-    gyro_arw_rad_per_sqrt_s: float = 2.0 * DEG / SQRT_HOUR
+    gyro_arw_rad_per_sqrt_s: float = 2.0 * DEG_TO_RAD / SQRT_HOUR
     accel_vrw_mps_per_sqrt_s: float = 0.12 / SQRT_HOUR
-    gyro_range_rps: float = 300.0 * DEG
-    accel_range_mps2: float = 5.0 * STANDARD_GRAVITY
+    gyro_range_rps: float = 300.0 * DEG_TO_RAD
+    accel_range_mps2: float = 5.0 * GRAVITY_MPS2
     vibration: EngineVibration | None = field(default_factory=EngineVibration)
     temp_start_c: float = 27.0  # warms up towards temp_end_c with temp_tau_s
     temp_end_c: float = 38.0

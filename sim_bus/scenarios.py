@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
-import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -55,8 +54,6 @@ CONFIG_SECTIONS = ("vehicle", "imu", "gnss")
 
 #: Default host-clock start of a run (UTC s): 2023-11-14 22:13:20.
 T0_S = 1_700_000_000.0
-
-DEG = math.pi / 180.0
 
 
 @dataclass(frozen=True)

@@ -23,8 +23,8 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.samples import FixQuality, GnssFix, ImuSample
+from drivers.units import GRAVITY_MPS2
 from gateway.estimation.geodesy import ned_to_lla
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2
 from gateway.estimation.solution import Estimator
 
 Array = npt.NDArray[np.float64]

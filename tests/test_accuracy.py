@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 from numpy.testing import assert_allclose
 
+from drivers.units import wrap_pi
 from gateway.demo.accuracy import (
     Trace,
     attitude_error_rad,
@@ -17,7 +18,6 @@ from gateway.demo.accuracy import (
     lever_arm_error_h_m,
     max_abs,
     rms,
-    wrap_pi,
 )
 from gateway.estimation.geodesy import ned_to_lla
 from sim_bus.truth import Truth
@@ -36,7 +36,7 @@ def test_rms_and_max_ignore_nan() -> None:
 def test_angle_errors_wrap_across_north() -> None:
     err = attitude_error_rad([[0.0, 0.0, 359.0 * DEG]], [[0.0, 0.0, 1.0 * DEG]])
     assert_allclose(err, [[0.0, 0.0, -2.0 * DEG]], atol=1e-12)
-    assert_allclose(wrap_pi([math.pi, -math.pi, 3 * math.pi]), [-math.pi] * 3)
+    assert_allclose(wrap_pi(np.array([math.pi, -math.pi, 3 * math.pi])), [-math.pi] * 3)
 
 
 def test_lever_arm_error_of_a_roll_error_on_a_3_m_mast() -> None:

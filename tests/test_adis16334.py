@@ -10,9 +10,9 @@ import pytest
 
 import dbc
 from drivers.imu_can import DiagStat, sample_period_s
+from drivers.units import DEG_TO_RAD
 from sim_bus.adis16334 import (
     ACCEL_LSB_MPS2,
-    DEG,
     EA_BIT,
     GM_ALLAN_FLOOR,
     GYRO_LSB_RPS,
@@ -34,11 +34,16 @@ QUIET = Adis16334Config(
 )
 
 
-def truth(seconds: float, w_dps=(1.0, -2.0, 3.0), f=(0.5, -0.2, -G), dec: int = 2):
+def truth(
+    seconds: float,
+    w_dps: tuple[float, float, float] = (1.0, -2.0, 3.0),
+    f: tuple[float, float, float] = (0.5, -0.2, -G),
+    dec: int = 2,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     dt = sample_period_s(dec)
     n = round(seconds / dt)
     t = 1.7e9 + np.arange(n) * dt
-    return t, np.tile(np.asarray(w_dps) * DEG, (n, 1)), np.tile(np.asarray(f), (n, 1))
+    return t, np.tile(np.asarray(w_dps) * DEG_TO_RAD, (n, 1)), np.tile(np.asarray(f), (n, 1))
 
 
 def allan_dev(x: np.ndarray, m: int) -> np.ndarray:
@@ -52,7 +57,7 @@ def test_lsbs_agree_with_the_dbc() -> None:
     db = dbc.load(dbc.IMU_DBC)
     gyro = db.get_message_by_name("IMU_GYRO").get_signal_by_name("XGYRO_OUT")
     accel = db.get_message_by_name("IMU_ACCEL").get_signal_by_name("XACCL_OUT")
-    assert gyro.scale * DEG == pytest.approx(GYRO_LSB_RPS, rel=1e-15)
+    assert gyro.scale * DEG_TO_RAD == pytest.approx(GYRO_LSB_RPS, rel=1e-15)
     assert accel.scale * G == pytest.approx(ACCEL_LSB_MPS2, rel=1e-15)
 
 
@@ -69,7 +74,9 @@ def test_noise_free_words_are_the_quantised_truth_with_nd_set() -> None:
 
 
 def test_white_noise_matches_the_random_walk_figures() -> None:
-    cfg = replace(QUIET, gyro_arw_rad_per_sqrt_s=2.0 * DEG / 60, accel_vrw_mps_per_sqrt_s=0.12 / 60)
+    cfg = replace(
+        QUIET, gyro_arw_rad_per_sqrt_s=2.0 * DEG_TO_RAD / 60, accel_vrw_mps_per_sqrt_s=0.12 / 60
+    )
     t, w, f = truth(200.0)
     out = simulate(t, w, f, cfg)
     dt = cfg.dt_s
@@ -85,12 +92,12 @@ def test_white_noise_matches_the_random_walk_figures() -> None:
 
 
 def test_in_run_bias_allan_floor_equals_the_bias_stability() -> None:
-    cfg = replace(QUIET, gyro_bias_stability_rps=0.007 * DEG, bias_correlation_time_s=0.5)
+    cfg = replace(QUIET, gyro_bias_stability_rps=0.007 * DEG_TO_RAD, bias_correlation_time_s=0.5)
     t, w, f = truth(2000.0)
     b = simulate(t, w, f, cfg).bias_g_rps
     peak = allan_dev(b, round(1.89 * 0.5 / cfg.dt_s))
     np.testing.assert_allclose(peak, cfg.gyro_bias_stability_rps, rtol=0.2)
-    assert b.std(axis=0) == pytest.approx(np.full(3, 0.007 * DEG / GM_ALLAN_FLOOR), rel=0.2)
+    assert b.std(axis=0) == pytest.approx(np.full(3, 0.007 * DEG_TO_RAD / GM_ALLAN_FLOOR), rel=0.2)
 
 
 def test_measurement_minus_truth_is_the_reported_bias() -> None:
@@ -101,7 +108,7 @@ def test_measurement_minus_truth_is_the_reported_bias() -> None:
     e_f = counts_from_words(out.accel_words) * ACCEL_LSB_MPS2 - f - out.bias_a_mps2
     assert np.abs(e_w).max() <= GYRO_LSB_RPS / 2 + 1e-12
     assert np.abs(e_f).max() <= ACCEL_LSB_MPS2 / 2 + 1e-12
-    assert 0 < np.abs(out.bias_g_rps[0]).max() < 1.0 * DEG
+    assert 0 < np.abs(out.bias_g_rps[0]).max() < 1.0 * DEG_TO_RAD
     assert simulate(t, w, f, cfg).gyro_words.tobytes() == out.gyro_words.tobytes()  # seeded
 
 
@@ -117,7 +124,7 @@ def test_mounting_rotation_sensor_measures_in_imu_axes() -> None:
 
 def test_over_range_saturates_latches_diag_and_sets_ea_until_read() -> None:
     t, w, f = truth(3.0)
-    w[300] = [500 * DEG, 0, 0]
+    w[300] = [500 * DEG_TO_RAD, 0, 0]
     out = simulate(t, w, f, QUIET)
     assert counts_from_words(out.gyro_words)[300, 0] == 8191
     reads = out.aux.index

@@ -5,6 +5,7 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 
+from drivers.units import wrap_pi
 from gateway.estimation.attitude import (
     dcm_from_rpy,
     dcm_mul,
@@ -16,7 +17,6 @@ from gateway.estimation.attitude import (
     rpy_from_dcm,
     skew,
     to_mat9,
-    wrap_pi,
 )
 
 

@@ -20,6 +20,7 @@ from scipy.stats import chi2
 from drivers.imu_can import read_log
 from drivers.nmea import read_fixes_from_log
 from drivers.samples import FixQuality, GnssFix, ImuSample
+from drivers.units import DEG_TO_RAD
 from gateway.estimation.attitude import dcm_from_rpy
 from gateway.estimation.ekf.ekf_config import EkfConfig
 from gateway.estimation.ekf.ekf_engine import EkfEngine
@@ -30,8 +31,6 @@ from gateway.estimation.solution import Mode, Solution
 from sim_bus.gnss_receiver import FixInterval
 from sim_bus.scenarios import SCENARIOS, Scenario, generate
 from sim_bus.truth import Truth
-
-DEG = math.pi / 180.0
 
 
 @dataclass
@@ -150,7 +149,7 @@ def test_consistency_on_short(short_run: tuple[Truth, list, list]) -> None:
 
 def test_gyro_and_accel_biases_converge_when_constant(tmp_path: Path) -> None:
     sc = SCENARIOS["short"]
-    bg = (0.08 * DEG, -0.06 * DEG, 0.05 * DEG)
+    bg = (0.08 * DEG_TO_RAD, -0.06 * DEG_TO_RAD, 0.05 * DEG_TO_RAD)
     ba = (0.04, -0.03, 0.02)
     sc = replace(
         sc,

@@ -5,8 +5,10 @@ from __future__ import annotations
 import asyncio
 import itertools
 import math
+from collections.abc import AsyncGenerator
 from dataclasses import replace
 from pathlib import Path
+from typing import Any
 
 import can
 import numpy as np
@@ -17,13 +19,14 @@ from hypothesis import strategies as st
 from drivers.imu_can import ImuCanConfig, ImuCanIds, ImuDecoder, read_bus, read_log
 from drivers.logs.candump import read_candump, write_candump
 from drivers.samples import ImuAux, ImuSample
+from drivers.units import DEG_TO_RAD
 from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import GatewayConfig, VehicleSection
 from sim_bus.adis16334 import (
     ACCEL_LSB_MPS2,
-    DEG,
     GYRO_LSB_RPS,
     Adis16334Config,
+    Adis16334Output,
     counts_from_words,
     simulate,
 )
@@ -35,16 +38,16 @@ DT = 4 / 819.2
 _channels = itertools.count()
 
 
-def sim(seconds: float = 2.0, **cfg):
+def sim(seconds: float = 2.0, **cfg: Any) -> tuple[Adis16334Output, list[can.Message]]:
     n = round(seconds / DT)
     t = 1.7e9 + np.arange(n) * DT
-    w = np.tile(np.array([3.0, -1.5, 12.0]) * DEG, (n, 1))
+    w = np.tile(np.array([3.0, -1.5, 12.0]) * DEG_TO_RAD, (n, 1))
     f = np.tile([0.8, -0.3, -G], (n, 1))
     out = simulate(t, w, f, replace(Adis16334Config(), **cfg))
     return out, list(frames(out))
 
 
-def exact_si(out, k: int) -> tuple[np.ndarray, np.ndarray]:
+def exact_si(out: Adis16334Output, k: int) -> tuple[np.ndarray, np.ndarray]:
     """What the driver must return: the register counts through the DBC scaling, in SI."""
     g = counts_from_words(out.gyro_words[k]) * 0.05 * (math.pi / 180.0)
     a = counts_from_words(out.accel_words[k]) * 0.001 * G
@@ -64,6 +67,7 @@ def run_bus(msgs: list[can.Message], decoder: ImuDecoder, idle_s: float = 0.3) -
             for m in msgs:
                 tx.send(m)
             agen = read_bus(rx, decoder)
+            assert isinstance(agen, AsyncGenerator)  # an async generator function: aclose()
             try:
                 while True:
                     items.append(await asyncio.wait_for(agen.__anext__(), idle_s))
@@ -120,7 +124,9 @@ def test_mounting_rotation_from_config() -> None:
     dec = ImuDecoder(imu_config(mounted))  # the config key's path to the driver
     s = samples([i for m in msgs for i in dec.feed(m)])
     np.testing.assert_allclose(
-        s[0].w_ib_b, np.array([3.0, -1.5, 12.0]) * DEG + out.bias_g_rps[0], atol=3 * GYRO_LSB_RPS
+        s[0].w_ib_b,
+        np.array([3.0, -1.5, 12.0]) * DEG_TO_RAD + out.bias_g_rps[0],
+        atol=3 * GYRO_LSB_RPS,
     )
     np.testing.assert_allclose(
         s[0].f_ib_b, np.array([0.8, -0.3, -G]) + out.bias_a_mps2[0], atol=3 * ACCEL_LSB_MPS2
@@ -219,6 +225,13 @@ def test_log_source_equals_bus_source(tmp_path: Path) -> None:
         assert x.seq == y.seq and np.array_equal(x.w_ib_b, y.w_ib_b) and abs(x.t - y.t) < 1e-6
 
 
+def received(bus: can.BusABC) -> can.Message:
+    """The next frame waiting on ``bus``, which must be there."""
+    msg = bus.recv(0)
+    assert msg is not None
+    return msg
+
+
 def test_can_player_delivers_every_frame_in_order(tmp_path: Path) -> None:
     _out, msgs = sim(0.3)
     path = tmp_path / "p.log"
@@ -229,7 +242,7 @@ def test_can_player_delivers_every_frame_in_order(tmp_path: Path) -> None:
             can.Bus(interface="virtual", channel=f"play{speed}") as tx,
         ):
             assert play(read_candump(path), tx, speed=speed) == len(msgs)
-            got = [rx.recv(0) for _ in msgs]
+            got = [received(rx) for _ in msgs]
             assert rx.recv(0) is None
         assert [(m.arbitration_id, bytes(m.data)) for m in got] == [
             (m.arbitration_id, bytes(m.data)) for m in msgs
@@ -255,7 +268,9 @@ ours = st.sampled_from([0x0CFF1080, 0x0CFF1180, 0x18FF1280, 0x1CFF1080])
         max_size=40,
     )
 )
-def test_arbitrary_frames_never_raise_out_of_the_decoder(frames_in) -> None:
+def test_arbitrary_frames_never_raise_out_of_the_decoder(
+    frames_in: list[tuple[int, bytes, bool, bool, float]],
+) -> None:
     dec = ImuDecoder()
     for can_id, data, ext, remote, t in frames_in:
         msg = can.Message(

@@ -3,23 +3,27 @@
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
 
 import dbc
-from sim_bus.adis16334 import DEG, Adis16334Config, counts_from_words, simulate
+from drivers.units import DEG_TO_RAD
+from sim_bus.adis16334 import Adis16334Config, Adis16334Output, counts_from_words, simulate
 from sim_bus.imu_frames import BridgeConfig, frames
 
 G = 9.80665
 DB = dbc.load(dbc.IMU_DBC)
 
 
-def sim(seconds: float = 3.0, **cfg):
+def sim(
+    seconds: float = 3.0, **cfg: Any
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, Adis16334Output]:
     dt = 4 / 819.2
     n = round(seconds / dt)
     t = 1.7e9 + np.arange(n) * dt
-    w = np.tile(np.array([10.0, -20.0, 5.0]) * DEG, (n, 1))
+    w = np.tile(np.array([10.0, -20.0, 5.0]) * DEG_TO_RAD, (n, 1))
     f = np.tile([1.0, -0.5, -G], (n, 1))
     return t, w, f, simulate(t, w, f, replace(Adis16334Config(), **cfg))
 
@@ -58,6 +62,7 @@ def test_fast_path_bytes_equal_the_dbc_encode() -> None:
     for m, i in zip(aux, out.aux.index, strict=True):
         diag = int(out.aux.diag_stat[list(out.aux.index).index(i)])
         values = DB.get_message_by_name("IMU_AUX").decode(bytes(m.data), scaling=False)
+        assert isinstance(values, dict)  # a plain message, not a container
         assert values["SMPL_PRD"] == 0x0201 and values["DIAG_OVERRANGE"] == (diag >> 4) & 1
 
 
@@ -70,11 +75,13 @@ def test_frames_decode_back_to_the_measurements_within_one_lsb() -> None:
     for m in msgs:
         if m.arbitration_id == 0x0CFF1080:
             v = gyro.decode(bytes(m.data))
+            assert isinstance(v, dict)
             w_dps = np.array([v["XGYRO_OUT"], v["YGYRO_OUT"], v["ZGYRO_OUT"]])
             expected = np.rad2deg(w[k] + out.bias_g_rps[k])
             assert np.abs(w_dps - expected).max() <= 0.05 and v["SEQ"] == k % 256
         elif m.arbitration_id == 0x0CFF1180:
             v = accel.decode(bytes(m.data))
+            assert isinstance(v, dict)
             f_g = np.array([v["XACCL_OUT"], v["YACCL_OUT"], v["ZACCL_OUT"]])
             assert np.abs(f_g * G - f[k] - out.bias_a_mps2[k]).max() <= 0.001 * G
             k += 1

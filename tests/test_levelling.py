@@ -7,8 +7,8 @@ import math
 import pytest
 
 from drivers.samples import FixQuality, GnssFix
+from drivers.units import GRAVITY_MPS2
 from gateway.estimation.levelling import UNKNOWN_MOTION_TILT_RAD, WindowMotion
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2
 
 
 def fix(t: float, sog_mps: float | None, cog_deg: float = 90.0) -> GnssFix:

@@ -5,8 +5,9 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 
+from drivers.units import GRAVITY_MPS2
 from gateway.estimation.attitude import dcm_from_rpy, rpy_from_dcm
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2, ObserverConfig
+from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.observer.tereshkov import TereshkovObserver
 from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, run

@@ -22,6 +22,7 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.samples import GnssFix, ImuAux, ImuSample
+from drivers.units import wrap_pi
 from gateway.estimation.attitude import dcm_from_rpy_array
 from gateway.estimation.geodesy import lla_to_ned
 from gateway.estimation.solution import Estimator, Solution
@@ -131,11 +132,6 @@ def truth_at(truth: Truth, t: Array) -> TruthAt:
 
 
 # ======================================================================== pure metrics
-
-
-def wrap_pi(x: npt.ArrayLike) -> Array:
-    """Angles wrapped to [-pi, pi)."""
-    return np.asarray((np.asarray(x, dtype=float) + np.pi) % (2.0 * np.pi) - np.pi)
 
 
 def rms(x: npt.ArrayLike) -> float:

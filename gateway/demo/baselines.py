@@ -27,6 +27,7 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.samples import GnssFix, ImuSample
+from drivers.units import DEG_TO_RAD
 from gateway.estimation.attitude import dcm_from_rpy, roll_pitch_from_specific_force, rpy_from_dcm
 from gateway.estimation.geodesy import ned_to_lla
 from gateway.estimation.observer.observer_config import ObserverConfig
@@ -34,8 +35,6 @@ from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Convergence, Estimator, Solution
 
 Array = npt.NDArray[np.float64]
-
-DEG = math.pi / 180.0
 
 
 class _TiltSwapEngine(ABC):
@@ -125,7 +124,7 @@ class AhrsEngine(_TiltSwapEngine):
                 k_P=1.0 / config.tau_s, k_I=1.0 / (config.tau_s * config.tau_g_s)
             )
         elif kind == "madgwick":
-            self._filter = Madgwick(gain=math.sqrt(0.75) * 0.3 * DEG)
+            self._filter = Madgwick(gain=math.sqrt(0.75) * 0.3 * DEG_TO_RAD)
         else:
             raise ValueError(f"AHRS kind {kind!r}: expected 'mahony' or 'madgwick'")
         self._align_time_s = config.align_tilt_time_s

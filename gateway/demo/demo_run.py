@@ -25,6 +25,7 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.logs.candump import CandumpWriter
+from drivers.units import RAD_TO_DEG, wrap_pi
 from gateway.config.gateway_config import (
     GatewayConfig,
     GnssSection,
@@ -53,7 +54,6 @@ START_LEAD_S = 0.5  # wall time for the service to open its buses and port befor
 VIEW_S = 0.5  # live view refresh, wall seconds
 OUTPUT_LOG = "navgw-output.log"
 PLOT_FILE = "navgw-demo.png"
-DEG = 180.0 / math.pi
 
 
 @dataclass(frozen=True)
@@ -114,11 +114,6 @@ def truth_at(truth: Truth, t: npt.ArrayLike) -> dict[str, Array]:
         "bias_a_mps2": interp(truth.bias_a_mps2),
         "ne_m": interp(truth.pos_ned_m[:, :2]),
     }
-
-
-def wrap_rad(a: Array) -> Array:
-    """Angles to [-pi, pi)."""
-    return (a + np.pi) % (2 * np.pi) - np.pi
 
 
 @dataclass(frozen=True)
@@ -210,16 +205,16 @@ def view_text(service: GatewayService, truth: Truth, t0: float) -> str:
     if sol.roll_rad is None or sol.pitch_rad is None:
         return head + "\n  attitude: not yet\n  biases:   not yet"
     tr = truth_at(truth, sol.t)
-    rpy_true = tr["rpy_rad"][0] * DEG
-    yaw = f"{sol.yaw_rad * DEG:6.1f}" if sol.yaw_rad is not None else "   n/a"
+    rpy_true = tr["rpy_rad"][0] * RAD_TO_DEG
+    yaw = f"{sol.yaw_rad * RAD_TO_DEG:6.1f}" if sol.yaw_rad is not None else "   n/a"
     att = (
-        f"  attitude deg   roll {sol.roll_rad * DEG:+6.2f} ({rpy_true[0]:+6.2f})  pitch "
-        f"{sol.pitch_rad * DEG:+6.2f} ({rpy_true[1]:+6.2f})  heading {yaw} "
+        f"  attitude deg   roll {sol.roll_rad * RAD_TO_DEG:+6.2f} ({rpy_true[0]:+6.2f})  pitch "
+        f"{sol.pitch_rad * RAD_TO_DEG:+6.2f} ({rpy_true[1]:+6.2f})  heading {yaw} "
         f"({rpy_true[2] % 360:6.1f})"
     )
     if sol.bias_g_rps is None or sol.bias_a_mps2 is None:
         return head + "\n" + att + "\n  biases:   not yet"
-    g, g_true = np.asarray(sol.bias_g_rps) * DEG, tr["bias_g_rps"][0] * DEG
+    g, g_true = np.asarray(sol.bias_g_rps) * RAD_TO_DEG, tr["bias_g_rps"][0] * RAD_TO_DEG
     a, a_true = np.asarray(sol.bias_a_mps2), tr["bias_a_mps2"][0]
     bias = "  bias  gyro deg/s " + " ".join(
         f"{axis} {g[i]:+.4f} ({g_true[i]:+.4f})" for i, axis in enumerate("xyz")
@@ -308,8 +303,8 @@ async def run_demo(options: DemoOptions, show: Callable[[str], None]) -> DemoSum
 def _errors(trace: Trace, truth: Truth) -> tuple[Array, dict[str, Array]]:
     tr = truth_at(truth, trace.t)
     err = np.asarray(trace.rpy_rad) - tr["rpy_rad"]
-    err[:, 2] = wrap_rad(err[:, 2])
-    return err * DEG, tr
+    err[:, 2] = wrap_pi(err[:, 2])
+    return err * RAD_TO_DEG, tr
 
 
 def summarise(
@@ -335,7 +330,7 @@ def summarise(
             rms = (float(r[0]), float(r[1]), float(r[2]))
             d_ne = np.asarray(trace.ne_m)[after] - tr["ne_m"][after]
             ref_rms = float(np.sqrt(np.mean(np.sum(d_ne**2, axis=1))))
-        g = (trace.bias_g_rps[-1] - tr["bias_g_rps"][-1]) * DEG
+        g = (trace.bias_g_rps[-1] - tr["bias_g_rps"][-1]) * RAD_TO_DEG
         a = trace.bias_a_mps2[-1] - tr["bias_a_mps2"][-1]
         g_err, a_err = (float(g[0]), float(g[1]), float(g[2])), (float(a[0]), float(a[1]))
     core, imu = service.core.stats, service.imu_decoder.counters
@@ -373,10 +368,10 @@ def plot_trace(trace: Trace, truth: Truth, path: Path) -> tuple[Path | None, str
     err, tr = _errors(trace, truth)
     t = np.asarray(trace.t) - truth.t[0]
     fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
-    g, a = np.asarray(trace.bias_g_rps) * DEG, np.asarray(trace.bias_a_mps2)
+    g, a = np.asarray(trace.bias_g_rps) * RAD_TO_DEG, np.asarray(trace.bias_a_mps2)
     for i, axis in enumerate("xyz"):
         (line,) = axes[0].plot(t, g[:, i], label=f"gyro {axis}")
-        axes[0].plot(t, tr["bias_g_rps"][:, i] * DEG, "--", color=line.get_color())
+        axes[0].plot(t, tr["bias_g_rps"][:, i] * RAD_TO_DEG, "--", color=line.get_color())
     for i, axis in enumerate("xy"):
         (line,) = axes[1].plot(t, a[:, i], label=f"accel {axis}")
         axes[1].plot(t, tr["bias_a_mps2"][:, i], "--", color=line.get_color())

@@ -86,11 +86,6 @@ def orthonormalise(c: npt.ArrayLike) -> Array:
     return u @ vt
 
 
-def wrap_pi(angle_rad: float) -> float:
-    """Angle wrapped to [-pi, pi)."""
-    return (angle_rad + math.pi) % (2.0 * math.pi) - math.pi
-
-
 def to_mat9(c: npt.ArrayLike) -> Mat9:
     """(3, 3) array -> 9 row-major floats."""
     a = np.asarray(c, dtype=float).reshape(9).tolist()

@@ -17,7 +17,7 @@ import math
 from dataclasses import dataclass
 
 from drivers.samples import GnssFix
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2
+from drivers.units import GRAVITY_MPS2
 
 #: Tilt 1-sigma of a window levelled while moving with fewer than two GNSS velocities in it
 #: (1 Hz GNSS, a lost fix): 2 m/s^2, hard braking or pulling away of a farm vehicle, over g.

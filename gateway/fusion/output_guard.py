@@ -42,11 +42,11 @@ import numpy as np
 
 from drivers.log_limit import LogLimiter
 from drivers.samples import FixQuality
+from drivers.units import DEG_TO_RAD
 from gateway.estimation.solution import Mode, Solution
 
 log = logging.getLogger(__name__)
 
-DEG = math.pi / 180.0
 #: Metres per degree of latitude (mean; continuity tests need no better than 1 %).
 M_PER_DEG = 111_195.0
 
@@ -124,7 +124,7 @@ class OutputGuard:
         lim = self.limits
         if sol.roll_rad is not None or sol.pitch_rad is not None:
             sigma = sol.sigma_tilt_rad
-            if sigma is None or not sigma <= lim.max_tilt_sigma_deg * DEG:
+            if sigma is None or not sigma <= lim.max_tilt_sigma_deg * DEG_TO_RAD:
                 sol = replace(sol, roll_rad=None, pitch_rad=None)
         changes: dict[str, object] = {}
         reasons: list[str] = []
@@ -136,7 +136,7 @@ class OutputGuard:
                 reasons.append(f"{kind.value} ({why})")
                 changes.update(fields)
 
-        max_tilt = lim.max_tilt_deg * DEG
+        max_tilt = lim.max_tilt_deg * DEG_TO_RAD
         if (
             not _ok(sol.roll_rad, max_tilt)
             or not _ok(sol.pitch_rad, max_tilt)
@@ -151,7 +151,7 @@ class OutputGuard:
                 roll_rad=None, pitch_rad=None, yaw_rad=None, yaw_rate_rps=None,
                 lat_deg=None, lon_deg=None, alt_m=None, vel_ned_mps=None,
             )  # fmt: skip
-        if not _ok(sol.yaw_rate_rps, lim.max_rate_dps * DEG):
+        if not _ok(sol.yaw_rate_rps, lim.max_rate_dps * DEG_TO_RAD):
             withhold(
                 Withheld.RATE,
                 f"{_deg(sol.yaw_rate_rps)} deg/s; expected within +/-{lim.max_rate_dps:g}",
@@ -172,7 +172,7 @@ class OutputGuard:
             math.isfinite(sol.sigma_tilt_rad) and sol.sigma_tilt_rad >= 0.0
         ):
             withhold(Withheld.SIGMA, f"{sol.sigma_tilt_rad}", sigma_tilt_rad=None)
-        if not _vec_ok(sol.bias_g_rps, lim.max_gyro_bias_dps * DEG) or not _vec_ok(
+        if not _vec_ok(sol.bias_g_rps, lim.max_gyro_bias_dps * DEG_TO_RAD) or not _vec_ok(
             sol.bias_a_mps2, lim.max_accel_bias_mps2
         ):
             withhold(
@@ -235,7 +235,8 @@ class OutputGuard:
         moved = _Track(
             b.t,
             a.lat_deg + a.vel_ne_mps[0] * dt / M_PER_DEG,
-            a.lon_deg + a.vel_ne_mps[1] * dt / (M_PER_DEG * max(math.cos(a.lat_deg * DEG), 1e-6)),
+            a.lon_deg
+            + a.vel_ne_mps[1] * dt / (M_PER_DEG * max(math.cos(a.lat_deg * DEG_TO_RAD), 1e-6)),
             a.vel_ne_mps,
             a.since_t,
         )
@@ -261,12 +262,12 @@ def _vec_ok(v: object, limit: float) -> bool:
 
 
 def _deg(x: float | None) -> str:
-    return "n/a" if x is None else f"{x / DEG:.1f}"
+    return "n/a" if x is None else f"{x / DEG_TO_RAD:.1f}"
 
 
 def _distance_m(a: _Track, b: _Track) -> float:
     """Horizontal distance, local flat-earth (continuity checks: metres to kilometres)."""
     dlon = (b.lon_deg - a.lon_deg + 180.0) % 360.0 - 180.0
     dn = (b.lat_deg - a.lat_deg) * M_PER_DEG
-    de = dlon * M_PER_DEG * math.cos(0.5 * (a.lat_deg + b.lat_deg) * DEG)
+    de = dlon * M_PER_DEG * math.cos(0.5 * (a.lat_deg + b.lat_deg) * DEG_TO_RAD)
     return math.hypot(dn, de)

@@ -17,6 +17,7 @@ import cantools
 
 import dbc
 from drivers.samples import FixQuality, Vec3
+from drivers.units import SECONDS_PER_DAY, wrap_pi
 from gateway.estimation.solution import Solution
 from gateway.isobus.fast_packet import FastPacketFragmenter
 from gateway.isobus.frame_codec import FrameCodec, Value
@@ -28,7 +29,6 @@ from gateway.isobus.j1939 import (
     can_id,
 )
 
-SECONDS_PER_DAY = 86400
 TIME_LSB_S = 1e-4  # 129029 time of day resolution
 
 
@@ -88,7 +88,7 @@ Builder = Callable[[Solution, LoopStatus, int], Values]
 
 def _wrap_pi(angle_rad: float | None) -> float | None:
     """Angle in [-pi, pi): 127257 yaw is a signed 16-bit field (+/-3.2764 rad)."""
-    return None if angle_rad is None else (angle_rad + math.pi) % (2 * math.pi) - math.pi
+    return None if angle_rad is None else wrap_pi(angle_rad)
 
 
 def _wrap_2pi(angle_rad: float | None) -> float | None:

@@ -11,15 +11,12 @@ stationarity, fix-quality sets, convergence thresholds.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
+from drivers.units import DEG_TO_RAD, MG_MPS2, SQRT_SECONDS_PER_HOUR
 from gateway.estimation.epoch_clock import EpochTime
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2, Vec3Tuple
+from gateway.estimation.observer.observer_config import Vec3Tuple
 
-DEG = math.pi / 180.0
-MG_MPS2 = GRAVITY_MPS2 * 1e-3
-SQRT_HOUR_S = 60.0  # sqrt(3600 s)
 #: Allan-deviation floor of a first-order Gauss-Markov process / its sigma (at tau = 1.89 T):
 #: a datasheet "in-run bias stability" B is a Gauss-Markov sigma of B / 0.6174.
 GM_ALLAN_FLOOR = 0.6174
@@ -110,16 +107,16 @@ class EkfTuning:
         the driving noise but not the decay towards zero: the turn-on part of the bias is
         constant and a decaying model would pull it back to zero between observations.
         """
-        arw = cfg.gyro_arw_deg_per_sqrt_h * DEG / SQRT_HOUR_S
-        vrw = cfg.accel_vrw_mps_per_sqrt_h / SQRT_HOUR_S
-        sig_g = cfg.gyro_bias_stability_dps * DEG / GM_ALLAN_FLOOR
+        arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
+        vrw = cfg.accel_vrw_mps_per_sqrt_h / SQRT_SECONDS_PER_HOUR
+        sig_g = cfg.gyro_bias_stability_dps * DEG_TO_RAD / GM_ALLAN_FLOOR
         sig_a = cfg.accel_bias_stability_mg * MG_MPS2 / GM_ALLAN_FLOOR
         tau = cfg.bias_correlation_time_s
         return cls(
-            q_gyro_rad2_per_s=arw**2 + (cfg.vibration_gyro_dps * DEG) ** 2 * imu_dt_s,
+            q_gyro_rad2_per_s=arw**2 + (cfg.vibration_gyro_dps * DEG_TO_RAD) ** 2 * imu_dt_s,
             q_accel_m2_per_s3=vrw**2 + cfg.vibration_accel_mps2**2 * imu_dt_s,
             q_bias_g_rad2_per_s3=2.0 * sig_g**2 / tau,
             q_bias_a_m2_per_s5=2.0 * sig_a**2 / tau,
-            sigma_bias_g0_rps=cfg.gyro_bias_sigma0_dps * DEG,
+            sigma_bias_g0_rps=cfg.gyro_bias_sigma0_dps * DEG_TO_RAD,
             sigma_bias_a0_mps2=cfg.accel_bias_sigma0_mps2,
         )

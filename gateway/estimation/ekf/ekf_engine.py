@@ -37,6 +37,7 @@ import numpy.typing as npt
 
 from drivers.log_limit import LogLimiter
 from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix, ImuSample
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 from gateway.estimation.attitude import (
     dcm_from_rpy,
     exp_so3,
@@ -45,7 +46,7 @@ from gateway.estimation.attitude import (
     skew,
     to_mat9,
 )
-from gateway.estimation.ekf.ekf_config import DEG, EkfConfig, EkfTuning
+from gateway.estimation.ekf.ekf_config import EkfConfig, EkfTuning
 from gateway.estimation.ekf.error_state import (
     ATT,
     BA,
@@ -68,7 +69,6 @@ from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2
 from gateway.estimation.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
 
 Array = npt.NDArray[np.float64]
@@ -257,7 +257,10 @@ class EkfEngine:
             self._align_first_s = t
         fix = self._last_fix
         still = fix is None or fix.sog_mps is None or fix.sog_mps < self.cfg.stationary_speed_mps
-        quiet = math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2) < self.cfg.align_quiet_rate_dps * DEG
+        quiet = (
+            math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
+            < self.cfg.align_quiet_rate_dps * DEG_TO_RAD
+        )
         if not (quiet and still):
             if self._ins is not None or t - self._align_first_s < ALIGN_TIMEOUT_S:
                 self._win_t0_s = None
@@ -349,7 +352,9 @@ class EkfEngine:
                 )
             )
         if fix.heading_rad is not None:
-            measurements.append(fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG))
+            measurements.append(
+                fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD)
+            )
         dx = np.zeros(N_STATES)
         accepted = False
         for m in measurements:
@@ -438,9 +443,9 @@ class EkfEngine:
         if sig_pos is None:
             return
         if fix.heading_rad is not None:
-            target, sig_yaw = fix.heading_rad, self.cfg.hdt_sigma_deg * DEG
+            target, sig_yaw = fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD
         elif vel is not None and math.hypot(*vel) >= self.cfg.align_min_speed_mps:
-            target, sig_yaw = math.atan2(vel[1], vel[0]), self.cfg.align_yaw_sigma_deg * DEG
+            target, sig_yaw = math.atan2(vel[1], vel[0]), self.cfg.align_yaw_sigma_deg * DEG_TO_RAD
         else:
             return
         ins, hist, tun = self._ins, self._hist, self._tuning
@@ -572,7 +577,7 @@ class EkfEngine:
         cfg = self.cfg
         self._stationary = (
             float(np.linalg.norm(v_ref_b)) < cfg.stationary_speed_mps
-            and float(np.linalg.norm(w_b)) < cfg.stationary_rate_dps * DEG
+            and float(np.linalg.norm(w_b)) < cfg.stationary_rate_dps * DEG_TO_RAD
         )
         if v_ref_b[0] < -cfg.reverse_detect_speed_mps:
             self._reversing = True
@@ -678,8 +683,9 @@ class EkfEngine:
             reversing=self._reversing,
             stationary=self._stationary,
             convergence=Convergence(
-                gyro_xy=sig is not None and max(sig[0][:2]) < cfg.gyro_xy_converged_dps * DEG,
-                gyro_z=sig is not None and sig[0][2] < cfg.gyro_z_converged_dps * DEG,
+                gyro_xy=sig is not None
+                and max(sig[0][:2]) < cfg.gyro_xy_converged_dps * DEG_TO_RAD,
+                gyro_z=sig is not None and sig[0][2] < cfg.gyro_z_converged_dps * DEG_TO_RAD,
                 accel_xy=sig is not None and max(sig[1][:2]) < cfg.accel_xy_converged_mps2,
                 learning_frozen=p is None or coasting_s > 0.0,
             ),

@@ -35,6 +35,7 @@ from functools import cache
 import numpy as np
 import numpy.typing as npt
 
+from drivers.units import GRAVITY_MPS2, wrap_pi
 from gateway.estimation.attitude import (
     Mat9,
     dcm_mul,
@@ -44,10 +45,8 @@ from gateway.estimation.attitude import (
     orthonormalise,
     skew,
     to_mat9,
-    wrap_pi,
 )
 from gateway.estimation.ekf.ekf_config import EkfTuning
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2
 
 Array = npt.NDArray[np.float64]
 Floats = Sequence[float] | Array  # a 3-vector as list, tuple or array

@@ -29,14 +29,12 @@ import math
 from dataclasses import dataclass
 from enum import Enum
 
-from gateway.estimation.attitude import wrap_pi
+from drivers.units import DEG_TO_RAD, SQRT_SECONDS_PER_HOUR, wrap_pi
 from gateway.estimation.observer.observer_config import ObserverConfig
 
-DEG = math.pi / 180.0
-
 #: Course-vs-heading difference above which the vehicle is reversing, below which forward.
-REVERSE_ENTER_RAD = 135.0 * DEG
-REVERSE_LEAVE_RAD = 45.0 * DEG
+REVERSE_ENTER_RAD = 135.0 * DEG_TO_RAD
+REVERSE_LEAVE_RAD = 45.0 * DEG_TO_RAD
 
 
 class HeadingSource(Enum):
@@ -106,7 +104,8 @@ class HeadingChannel:
     def __init__(self, cfg: ObserverConfig) -> None:
         self.cfg = cfg
         self.kf = GyroZBiasKf(
-            cfg.gyro_z_bias_sigma0_dps * DEG, cfg.gyro_z_bias_walk_dps_per_sqrt_s * DEG
+            cfg.gyro_z_bias_sigma0_dps * DEG_TO_RAD,
+            cfg.gyro_z_bias_walk_dps_per_sqrt_s * DEG_TO_RAD,
         )
         self.reversing = False
         self._t_kf_s: float | None = None
@@ -136,7 +135,9 @@ class HeadingChannel:
         cfg = self.cfg
         candidates: list[HeadingReference] = []
         if hdt_rad is not None:
-            candidates.append(HeadingReference(hdt_rad, cfg.hdt_sigma_deg * DEG, HeadingSource.HDT))
+            candidates.append(
+                HeadingReference(hdt_rad, cfg.hdt_sigma_deg * DEG_TO_RAD, HeadingSource.HDT)
+            )
         if stationary:
             self.reversing = False
         elif cog_ref_rad is not None and speed_ref_mps > cfg.reverse_detect_speed_mps:
@@ -165,13 +166,13 @@ class HeadingChannel:
         cfg = self.cfg
         if cfg.ab_line_bearing_deg is None:
             return None
-        bearing = cfg.ab_line_bearing_deg * DEG
+        bearing = cfg.ab_line_bearing_deg * DEG_TO_RAD
         if abs(wrap_pi(psi_hat_rad - bearing)) > math.pi / 2:
             bearing = (bearing + math.pi) % (2.0 * math.pi)
         along = (
             not stationary
-            and abs(wrap_pi(psi_hat_rad - bearing)) < cfg.ab_line_window_deg * DEG
-            and abs(yaw_rate_rps) < cfg.ab_line_max_rate_dps * DEG
+            and abs(wrap_pi(psi_hat_rad - bearing)) < cfg.ab_line_window_deg * DEG_TO_RAD
+            and abs(yaw_rate_rps) < cfg.ab_line_max_rate_dps * DEG_TO_RAD
         )
         if not along:
             self._ab_dwell_since_s = None
@@ -181,7 +182,7 @@ class HeadingChannel:
         if t_s - self._ab_dwell_since_s < cfg.ab_line_min_time_s:
             return None
         return HeadingReference(
-            bearing % (2.0 * math.pi), cfg.ab_line_sigma_deg * DEG, HeadingSource.AB_LINE
+            bearing % (2.0 * math.pi), cfg.ab_line_sigma_deg * DEG_TO_RAD, HeadingSource.AB_LINE
         )
 
     # ---------------------------------------------------------------------- correction
@@ -209,7 +210,7 @@ class HeadingChannel:
             self._rejected_since_s = None
             return HeadingCorrection()
         r = wrap_pi(psi_hat_rad - ref.psi_rad)
-        if abs(r) > self.cfg.heading_gate_deg * DEG:
+        if abs(r) > self.cfg.heading_gate_deg * DEG_TO_RAD:
             self._window = None
             if self._rejected_since_s is None:
                 self._rejected_since_s = t_s
@@ -236,7 +237,7 @@ class HeadingChannel:
 
     def _predict_heading_variance(self, gap_s: float) -> None:
         """Heading error variance grows by ARW^2 gap + (sigma_bz gap)^2 without a reference."""
-        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self._p_psi_rad2 += arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
 
     def aligned(self, sigma_rad: float) -> None:
@@ -248,7 +249,7 @@ class HeadingChannel:
     def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> None:
         """Zero-rate update at rest: the mean bias-corrected body z rate over ``window_s``
         is the residual z bias, variance ARW^2 / window (engine vibration averages out)."""
-        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
         self.kf.update(mean_w_z_rps, arw**2 / window_s)
         self._t_kf_s = t_s

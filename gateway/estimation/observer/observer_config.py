@@ -13,8 +13,6 @@ from gateway.estimation.epoch_clock import EpochTime
 
 Vec3Tuple = tuple[float, float, float]
 
-GRAVITY_MPS2 = 9.80665  # ALGORITHMS.md conventions: g = [0, 0, +9.80665] in NED
-
 
 @dataclass(frozen=True)
 class ObserverConfig:

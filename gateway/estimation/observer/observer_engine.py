@@ -25,20 +25,20 @@ import numpy as np
 
 from drivers.log_limit import LogLimiter
 from drivers.samples import FixQuality, GnssFix, ImuSample
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, SQRT_SECONDS_PER_HOUR, wrap_pi
 from gateway.estimation.attitude import (
     dcm_from_rpy,
     exp_so3,
     roll_pitch_from_specific_force,
     rpy_from_dcm,
-    wrap_pi,
 )
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import reference_from_antenna, velocity_at
-from gateway.estimation.observer.heading_channel import DEG, HeadingChannel
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2, ObserverConfig
+from gateway.estimation.observer.heading_channel import HeadingChannel
+from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.tereshkov import TereshkovObserver
 from gateway.estimation.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
 
@@ -59,7 +59,7 @@ OUTPUT_RATE_WINDOW_S = 0.05
 #: Body rate for the stationarity test: mean over this long before the epoch.
 STATIONARY_RATE_WINDOW_S = 0.2
 #: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
-GYRO_BIAS_FLOOR_RPS = 0.01 * DEG
+GYRO_BIAS_FLOOR_RPS = 0.01 * DEG_TO_RAD
 ACCEL_BIAS_FLOOR_MPS2 = 0.01
 
 # history row: (t, integral of f_p N, E, D, platform heading psi, cumulative heading
@@ -234,7 +234,7 @@ class ObserverEngine:
         if t - self._align_t0_s < self.cfg.align_tilt_time_s:
             return
         n = self._align_n
-        quiet = math.hypot(s[0], s[1], s[2]) / n < self.cfg.align_quiet_rate_dps * DEG
+        quiet = math.hypot(s[0], s[1], s[2]) / n < self.cfg.align_quiet_rate_dps * DEG_TO_RAD
         if not quiet and t - self._align_first_s < ALIGN_TIMEOUT_S:
             self._align_t0_s = None
             return
@@ -243,7 +243,7 @@ class ObserverEngine:
         self._observer = TereshkovObserver(
             self.cfg.tau_s,
             self.cfg.tau_g_s,
-            self.cfg.omega_a_dps * DEG,
+            self.cfg.omega_a_dps * DEG_TO_RAD,
             dcm_from_rpy(roll, pitch, 0.0),
         )
 
@@ -294,7 +294,7 @@ class ObserverEngine:
         # tilt loop and x/y gyro learning need no heading and no rate test (a large gyro bias
         # must not keep the loop open: 0.5 deg/s per axis tilts 2 deg in 4 s open loop)
         self._at_rest = speed_ref < self.cfg.stationary_speed_mps
-        rate_limit = self.cfg.stationary_rate_dps * DEG + 3.0 * self._sigma_bg_rps()
+        rate_limit = self.cfg.stationary_rate_dps * DEG_TO_RAD + 3.0 * self._sigma_bg_rps()
         self._stationary = self._at_rest and float(np.linalg.norm(w_still)) < rate_limit
         self._hold_control(t_e)
         glitch = self._correct_tilt(t_e, float(v_imu[0]), float(v_imu[1]), row)
@@ -511,7 +511,7 @@ class ObserverEngine:
         self._t_last_epoch_s = t_e
         if obs.learn and 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
             self._g_learn += interval_s / self.cfg.tau_g_s
-            self._a_learn += obs.w_b_rps[2] ** 2 * interval_s / (self.cfg.omega_a_dps * DEG)
+            self._a_learn += obs.w_b_rps[2] ** 2 * interval_s / (self.cfg.omega_a_dps * DEG_TO_RAD)
         if not (ok and self.cfg.estimate_biases):
             self._learn_ok_since_s = None
             obs.learn = False
@@ -540,7 +540,7 @@ class ObserverEngine:
         assert obs is not None
         if not self._heading_aligned:
             if hdt_rad is not None:
-                target, sigma = hdt_rad, self.cfg.hdt_sigma_deg * DEG
+                target, sigma = hdt_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD
             elif speed_ref_mps >= self.cfg.align_min_speed_mps:
                 target, sigma = cog_ref_rad, self.cfg.gnss_vel_sigma_mps / speed_ref_mps
             else:
@@ -737,7 +737,7 @@ class ObserverEngine:
             stationary=self._stationary,
             convergence=Convergence(
                 gyro_xy=self._g_learn >= k,
-                gyro_z=self._heading.kf.sigma_rps < self.cfg.gyro_z_converged_dps * DEG,
+                gyro_z=self._heading.kf.sigma_rps < self.cfg.gyro_z_converged_dps * DEG_TO_RAD,
                 accel_xy=self._a_learn >= k,
                 learning_frozen=not obs.learn,
             ),
@@ -771,7 +771,7 @@ class ObserverEngine:
 
     def _sigma_bg_rps(self) -> float:
         """x/y gyro bias 1-sigma: the turn-on sigma decaying with the learning exponent."""
-        sigma0 = self.cfg.gyro_bias_sigma0_dps * DEG
+        sigma0 = self.cfg.gyro_bias_sigma0_dps * DEG_TO_RAD
         return max(sigma0 * math.exp(-self._g_learn), GYRO_BIAS_FLOOR_RPS)
 
     def _sigma_tilt_rad(self, coasting_s: float) -> float:
@@ -795,7 +795,7 @@ class ObserverEngine:
         g = GRAVITY_MPS2
         sigma_bg = self._sigma_bg_rps()
         sigma_ba = max(cfg.accel_bias_sigma0_mps2 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2)
-        arw = cfg.gyro_arw_dps_per_sqrt_h * DEG / 60.0
+        arw = cfg.gyro_arw_dps_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
         return math.sqrt(
             arw**2 * cfg.tau_s / 2.0

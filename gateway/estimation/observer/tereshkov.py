@@ -27,6 +27,7 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from drivers.units import GRAVITY_MPS2
 from gateway.estimation.attitude import (
     Mat9,
     dcm_mul,
@@ -36,7 +37,6 @@ from gateway.estimation.attitude import (
     orthonormalise,
     to_mat9,
 )
-from gateway.estimation.observer.observer_config import GRAVITY_MPS2
 
 Array = npt.NDArray[np.float64]
 Float3 = tuple[float, float, float]
