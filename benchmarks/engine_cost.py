@@ -54,8 +54,8 @@ def main() -> None:
     n_imu = sum(isinstance(i, ImuSample) for i in inputs)
     config = GatewayConfig(
         vehicle=VehicleSection(
-            antenna_lever_arm_m=tuple(truth.antenna_lever_arm_m),  # type: ignore[arg-type]
-            imu_lever_arm_m=tuple(truth.imu_lever_arm_m),  # type: ignore[arg-type]
+            antenna_lever_arm_m=tuple(truth.antenna_lever_arm_m),
+            imu_lever_arm_m=tuple(truth.imu_lever_arm_m),
         ),
         gnss=GnssSection(receiver_latency_s=0.065),
     )

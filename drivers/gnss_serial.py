@@ -19,6 +19,7 @@ from collections.abc import AsyncIterator, Callable
 
 import serial
 
+from drivers.backoff import Backoff
 from drivers.nmea import NmeaDecoder
 from drivers.samples import GnssFix
 
@@ -47,8 +48,7 @@ class GnssSerialReader:
         self.baudrate = baudrate
         self.decoder = decoder if decoder is not None else NmeaDecoder(port)
         self.clock = clock
-        self.backoff_initial_s = backoff_initial_s
-        self.backoff_max_s = backoff_max_s
+        self._backoff = Backoff(backoff_initial_s, backoff_max_s)
         self.read_size = read_size
         self.connected = False  # for the service's STATUS
         self._closed = asyncio.Event()
@@ -59,7 +59,6 @@ class GnssSerialReader:
 
     async def fixes(self) -> AsyncIterator[GnssFix]:
         """Fixes as they complete, across disconnections, until `close`."""
-        backoff = self.backoff_initial_s
         reported_down = False
         while not self._closed.is_set():
             try:
@@ -68,14 +67,14 @@ class GnssSerialReader:
                 if not reported_down:
                     log.warning(
                         "GNSS port %s not available (%s); retrying, at most every %g s",
-                        self.port, exc, self.backoff_max_s,
+                        self.port, exc, self._backoff.max_s,
                     )  # fmt: skip
                     reported_down = True
-                await self._sleep(backoff)
-                backoff = min(2.0 * backoff, self.backoff_max_s)
+                await self._sleep(self._backoff.next())
                 continue
             log.info("GNSS port %s connected at %d baud", self.port, self.baudrate)
-            self.connected, reported_down, backoff = True, False, self.backoff_initial_s
+            self.connected, reported_down = True, False
+            self._backoff.reset()
             try:
                 async for t_host, data in self._chunks(port):
                     for fix in self.decoder.feed(data, t_host):

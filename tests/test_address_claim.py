@@ -75,7 +75,7 @@ class Node:
         self.now = 1_700_000_000.0
         self.sent: list[can.Message] = []
 
-    def send(self, frames: list[can.Message]) -> None:
+    def send(self, frames: Iterable[can.Message]) -> None:
         for frame in frames:
             self.bus.send(frame)
             self.echo.sent(frame, self.now)
@@ -119,7 +119,7 @@ class Raw:
 
 
 @pytest.fixture
-def buses(request: pytest.FixtureRequest):
+def buses(request: pytest.FixtureRequest) -> Iterator[tuple[Node, Raw]]:
     channel = f"claim-{request.node.name}"
     node, raw = Node(channel), Raw(channel)
     yield node, raw
@@ -142,7 +142,7 @@ def test_name_matches_canboats_iso_name() -> None:
     assert OURS >> 60 & 0x7 == 2 and OURS >> 63 == 1
 
 
-def test_alone_claims_preferred_and_sends_nothing_before(buses) -> None:
+def test_alone_claims_preferred_and_sends_nothing_before(buses: tuple[Node, Raw]) -> None:
     node, raw = buses
     node.start()
     node.run(0.150)
@@ -167,7 +167,7 @@ def test_alone_claims_preferred_and_sends_nothing_before(buses) -> None:
     assert len(seen) == len(node.sent)
 
 
-def test_contention_won_by_our_lower_name(buses) -> None:
+def test_contention_won_by_our_lower_name(buses: tuple[Node, Raw]) -> None:
     node, raw = buses
     node.start()
     node.run(0.6)
@@ -187,7 +187,7 @@ def assert_silent_until_claimed(node: Node, claim: can.Message) -> None:
     assert {FrameId.parse(f.arbitration_id).source for f in after} == {source}
 
 
-def test_contention_lost_moves_to_the_self_configurable_range(buses) -> None:
+def test_contention_lost_moves_to_the_self_configurable_range(buses: tuple[Node, Raw]) -> None:
     node, raw = buses
     node.start()
     node.run(0.2)  # claim sent, contention running
@@ -201,7 +201,7 @@ def test_contention_lost_moves_to_the_self_configurable_range(buses) -> None:
     assert_silent_until_claimed(node, node.sent[2])
 
 
-def test_late_joiner_with_lower_name_takes_our_address(buses) -> None:
+def test_late_joiner_with_lower_name_takes_our_address(buses: tuple[Node, Raw]) -> None:
     node, raw = buses
     node.start()
     raw.bus.send(claim_frame(128, OURS + 5))  # someone already holds 128
@@ -217,7 +217,7 @@ def test_late_joiner_with_lower_name_takes_our_address(buses) -> None:
     assert_silent_until_claimed(node, node.sent[lost_at])
 
 
-def test_requests_for_the_claim_are_answered(buses) -> None:
+def test_requests_for_the_claim_are_answered(buses: tuple[Node, Raw]) -> None:
     node, raw = buses
     node.start()
     node.run(0.6)
@@ -234,7 +234,7 @@ def test_requests_for_the_claim_are_answered(buses) -> None:
             assert int.from_bytes(claims[0].data, "little") == OURS
 
 
-def test_no_address_free_sends_cannot_claim_and_stays_silent(buses) -> None:
+def test_no_address_free_sends_cannot_claim_and_stays_silent(buses: tuple[Node, Raw]) -> None:
     node, raw = buses
     node.start()
     for address in [0x1C, *range(128, 248)]:  # everyone answers our request with a lower NAME
@@ -252,7 +252,9 @@ def test_no_address_free_sends_cannot_claim_and_stays_silent(buses) -> None:
     assert len(node.sent) == 3  # request, cannot-claim, cannot-claim answer
 
 
-def test_preferred_held_by_lower_name_at_start_goes_straight_to_128(buses) -> None:
+def test_preferred_held_by_lower_name_at_start_goes_straight_to_128(
+    buses: tuple[Node, Raw],
+) -> None:
     node, raw = buses
     node.start()
     raw.bus.send(claim_frame(0x1C, OURS - 1))
@@ -324,7 +326,7 @@ def test_our_own_echoes_are_no_conflict(marks_own: bool) -> None:
 
 @pytest.mark.parametrize("source", [0x1C, 0x40, 254], ids=["our-address", "other", "cannot"])
 def test_a_claim_with_our_name_is_a_clone_and_we_keep_our_address(
-    buses, source: int, caplog: pytest.LogCaptureFixture
+    buses: tuple[Node, Raw], source: int, caplog: pytest.LogCaptureFixture
 ) -> None:
     node, raw = buses
     node.start()
@@ -342,7 +344,7 @@ def test_a_claim_with_our_name_is_a_clone_and_we_keep_our_address(
     assert f"NAME 0x{OURS:016X}" in text and "same NAME" in text and "identity_number" in text
 
 
-def test_a_contender_we_beat_may_send_until_it_has_read_our_claim(buses) -> None:
+def test_a_contender_we_beat_may_send_until_it_has_read_our_claim(buses: tuple[Node, Raw]) -> None:
     """A claim for an address below 128 may be followed by output at once (J1939-81): those
     frames, sent before our defence reached the contender, are no spoof; later ones are."""
     node, raw = buses
@@ -359,7 +361,7 @@ def test_a_contender_we_beat_may_send_until_it_has_read_our_claim(buses) -> None
     assert node.claimer.spoofed_frames == 1 and node.claimer.conflict(node.now)
 
 
-def test_frames_from_the_address_we_left_are_not_ours_to_count(buses) -> None:
+def test_frames_from_the_address_we_left_are_not_ours_to_count(buses: tuple[Node, Raw]) -> None:
     node, raw = buses
     node.start()
     node.run(0.6)
@@ -441,7 +443,7 @@ def gateway(request: pytest.FixtureRequest) -> Iterator[tuple[Gateway, Raw]]:
 
 
 @pytest.mark.parametrize("gateway", [True, False], ids=["virtual", "udp-like"], indirect=True)
-def test_the_gateways_own_echoes_leave_status_navigating(gateway) -> None:
+def test_the_gateways_own_echoes_leave_status_navigating(gateway: tuple[Gateway, Raw]) -> None:
     gw, _ = gateway
     gw.run(MOTION.duration_s)
     gw.receive(T0_S + MOTION.duration_s + 0.01)
@@ -451,7 +453,7 @@ def test_the_gateways_own_echoes_leave_status_navigating(gateway) -> None:
 
 
 def test_a_clone_claiming_our_name_makes_status_degraded_for_the_hold_time(
-    gateway, caplog: pytest.LogCaptureFixture
+    gateway: tuple[Gateway, Raw], caplog: pytest.LogCaptureFixture
 ) -> None:
     gw, raw = gateway
     gw.run(CONFLICT_AT_S)
@@ -474,7 +476,7 @@ def test_a_clone_claiming_our_name_makes_status_degraded_for_the_hold_time(
 
 @pytest.mark.parametrize("pgn", [Pgn.ATTITUDE, Pgn.NAVGW_STATUS])
 def test_frames_sent_as_us_by_another_node_make_status_degraded(
-    gateway, caplog: pytest.LogCaptureFixture, pgn: Pgn
+    gateway: tuple[Gateway, Raw], caplog: pytest.LogCaptureFixture, pgn: Pgn
 ) -> None:
     gw, raw = gateway
     gw.run(CONFLICT_AT_S - 1.0)

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import math
+from collections.abc import Callable
 
 import numpy as np
 import pytest
@@ -89,7 +90,7 @@ def worst_position_error_m(engine: Estimator, inputs: list[ImuSample | GnssFix])
     return worst
 
 
-ENGINES = {
+ENGINES: dict[str, Callable[[], Estimator]] = {
     "observer": lambda: ObserverEngine(
         ObserverConfig(antenna_lever_arm_m=LEVER, epoch_time=EpochTime.UTC)
     ),

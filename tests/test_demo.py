@@ -55,14 +55,19 @@ def test_short_demo_writes_its_files_and_sane_numbers(tmp_path: Path) -> None:
 
     # inputs: every sample played is accounted for; on a virtual bus nothing is lost on the
     # way, so a sample counted lost is one the service itself dropped, and says so
-    samples, lost = map(int, re.search(r"inputs +(\d+) IMU samples \((\d+) lost\)", text).groups())
-    dropped = int(re.search(r"(\d+) (?:IMU samples )?dropped by", text)[1])
+    inputs = re.search(r"inputs +(\d+) IMU samples \((\d+) lost\)", text)
+    shed = re.search(r"(\d+) (?:IMU samples )?dropped by", text)
+    assert inputs is not None and shed is not None, text
+    samples, lost = map(int, inputs.groups())
+    dropped = int(shed[1])
     # (the demo stops its service right after the playback: a loaded host may leave up to the
     # latency a controller tolerates unread)
     played, backlog = MINUTES * 60 * 204.8, MAX_GAP_WALL_S * SPEED * 204.8
     assert samples + lost <= played + 5 and samples + lost + dropped >= played - backlog, text
     assert lost == 0 or dropped > 0, text  # no false losses
-    final = re.search(r"final mode (\w+)", text)[1]
+    final_mode = re.search(r"final mode (\w+)", text)
+    assert final_mode is not None, text[-2000:]
+    final = final_mode[1]
     assert final != "fault", text[-2000:]
     # the summary's RMS errors from 30 s after the first NAVIGATING ("not measured" if the
     # run ended before)

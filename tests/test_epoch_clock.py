@@ -29,10 +29,19 @@ def epochs(clock: EpochClock, stream: list[GnssFix]) -> np.ndarray:
     return np.array([clock.epoch_time(f) for f in stream])
 
 
+def utc_times(stream: list[GnssFix]) -> list[float]:
+    """The sentence (UTC) times of ``stream``, all of which carry one."""
+    times = []
+    for f in stream:
+        assert f.t_utc is not None
+        times.append(f.t_utc)
+    return times
+
+
 def test_auto_on_a_utc_host_uses_the_sentence_time_whatever_latency_is_configured() -> None:
     clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.3)
     stream = fixes(host_minus_utc_s=0.002, latency_s=0.068, jitter_s=0.01)
-    assert np.array_equal(epochs(clock, stream), [f.t_utc for f in stream])
+    assert np.array_equal(epochs(clock, stream), utc_times(stream))
     assert clock.host_follows_utc is True
 
 
@@ -73,7 +82,7 @@ def test_a_fix_without_a_date_is_placed_at_receive_time_minus_latency(mode: Epoc
 def test_explicit_modes_do_not_guess() -> None:
     stream = fixes(host_minus_utc_s=0.0, latency_s=0.068, jitter_s=0.0)
     utc = EpochClock(EpochTime.UTC, 0.0)
-    assert np.array_equal(epochs(utc, stream), [f.t_utc for f in stream])
+    assert np.array_equal(epochs(utc, stream), utc_times(stream))
     receive = EpochClock(EpochTime.RECEIVE, 0.05)
     assert epochs(receive, stream) == pytest.approx([f.t - 0.05 for f in stream], abs=1e-9)
     assert receive.host_follows_utc is False

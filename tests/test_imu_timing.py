@@ -290,7 +290,9 @@ stall = st.tuples(st.floats(0.1, 7.5), st.floats(0.001, 3.0))
 
 @settings(max_examples=60, deadline=None)
 @given(st.lists(stall, max_size=5), st.floats(1e-6, DT / 3))
-def test_stalls_never_count_a_loss_nor_move_a_sample_time(stalls, step) -> None:
+def test_stalls_never_count_a_loss_nor_move_a_sample_time(
+    stalls: list[tuple[float, float]], step: float
+) -> None:
     out, indexed = stream(8.0)
     dec, s = decode(host(indexed, stalls, step=step))
     err = check(dec, s, out, np.arange(len(out)))
@@ -302,7 +304,9 @@ def test_stalls_never_count_a_loss_nor_move_a_sample_time(stalls, step) -> None:
     st.lists(stall, max_size=4),
     st.lists(st.tuples(st.integers(1, 300), st.integers(1, 100)), max_size=6),
 )
-def test_stalls_with_real_losses_count_exactly_the_losses(stalls, runs) -> None:
+def test_stalls_with_real_losses_count_exactly_the_losses(
+    stalls: list[tuple[float, float]], runs: list[tuple[int, int]]
+) -> None:
     out, indexed = stream(8.0)
     gone: list[int] = []
     k = 0

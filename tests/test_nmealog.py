@@ -100,9 +100,8 @@ def test_reports_are_rate_limited_but_every_bad_line_counted(
 
 
 def test_round_trip_of_simulated_receiver_output(tmp_path: Path) -> None:
-    from test_gnss_receiver import straight_truth
-
     from sim_bus.gnss_receiver import simulate_receiver
+    from tests.test_gnss_receiver import straight_truth
 
     out = simulate_receiver(straight_truth(3.0, (1.0, 0.0)))
     path = tmp_path / "sim.nmea"

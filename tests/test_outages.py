@@ -30,7 +30,7 @@ from tests.kinematics import (
     motion_time,
     state_at,
 )
-from tests.n2k_check import decode_log
+from tests.n2k_check import Decoded, decode_log
 
 LEVER = (0.5, 0.0, -3.0)
 STATUS_ID = 0x18FF221C
@@ -61,6 +61,13 @@ def run(path: Path, engine: Engine, imu: list[ImuSample], fixes: list[GnssFix]) 
                 j += 1
             writer.write_all(core.on_input(s))
     return core
+
+
+def tilt_rad(m: Decoded) -> float:
+    """The larger of |roll| and |pitch| of a decoded attitude message."""
+    roll, pitch = m.fields["roll"], m.fields["pitch"]
+    assert isinstance(roll, int | float) and isinstance(pitch, int | float), m.fields
+    return max(abs(roll), abs(pitch))
 
 
 def status(path: Path) -> list[tuple[float, bytes]]:
@@ -183,11 +190,7 @@ def test_a_saturated_imu_is_a_fault_at_once_then_the_engine_realigns(
     decoded = decode_log(log)
     attitude = [m for m in decoded if m.id == "attitude"]
     assert not [m for m in attitude if span[0] <= motion_time(m.t) < span[1]]
-    tilts = [
-        max(abs(m.fields["roll"]), abs(m.fields["pitch"]))
-        for m in attitude
-        if m.fields["roll"] is not None
-    ]
+    tilts = [tilt_rad(m) for m in attitude if m.fields["roll"] is not None]
     assert tilts and np.degrees(max(tilts)) < 1.0  # flat ground: level throughout
     after = [Mode(d[2]) for t, d in frames if span[1] + 12.0 <= t < span[1] + 30.0]
     assert set(after) == {Mode.NAVIGATING}
@@ -211,7 +214,7 @@ def test_levelled_while_speeding_up_no_tilt_goes_out_until_it_is_known(
     core = run(log, engine, imu, fixes)
     assert core.stats.engine_restarts == 1
     tilts = [
-        (motion_time(m.t), np.degrees(max(abs(m.fields["roll"]), abs(m.fields["pitch"]))))
+        (motion_time(m.t), np.degrees(tilt_rad(m)))
         for m in decode_log(log)
         if m.id == "attitude" and m.fields["roll"] is not None
     ]

@@ -2,6 +2,7 @@
 
 import subprocess
 import sys
+from pathlib import Path
 
 import pytest
 
@@ -46,6 +47,7 @@ def test_reassembled_129029_payload_has_its_own_placeholder_id() -> None:
     payload = DB.get_message_by_name("GNSS_POSITION_DATA")
     assert payload.length == 47
     assert payload.frame_id == 3 << 26 | (129029 | 1 << 17) << 8 | 0x1C  # extended data page
+    assert payload.comment is not None
     assert "fast-packet" in payload.comment
 
 
@@ -53,6 +55,7 @@ def test_reassembled_payload_decodes_with_cantools() -> None:
     sol = Solution(t=1_700_000_000.5, mode=Mode.NAVIGATING, lat_deg=48.1, lon_deg=11.6, alt_m=520.0)
     payload = OutputEncoder().payload(Pgn.GNSS_POSITION_DATA, sol, LoopStatus(), 9)
     decoded = DB.get_message_by_name("GNSS_POSITION_DATA").decode(payload)
+    assert isinstance(decoded, dict)  # a plain message, not a container
     assert decoded["SID"] == 9
     assert decoded["LATITUDE"] == pytest.approx(48.1, abs=1e-12)
     assert decoded["ALTITUDE"] == pytest.approx(520.0, abs=1e-6)
@@ -65,7 +68,7 @@ def test_every_encoded_message_is_in_the_dbc() -> None:
     assert {layout.message for layout in LAYOUTS.values()} <= names
 
 
-def test_cantools_decode_reads_a_candump_log_of_the_output(tmp_path) -> None:
+def test_cantools_decode_reads_a_candump_log_of_the_output(tmp_path: Path) -> None:
     sols = [
         Solution(
             t=1_700_000_000.0 + k / 100,
@@ -98,7 +101,7 @@ def test_cantools_decode_reads_a_candump_log_of_the_output(tmp_path) -> None:
     )
     out = result.stdout.splitlines()
     assert len(out) == len(lines)
-    by_name = {}
+    by_name: dict[str, str] = {}
     for line in out:
         for name in EXPECTED:
             if f" {name}(" in line:

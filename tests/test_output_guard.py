@@ -10,6 +10,7 @@ from __future__ import annotations
 import logging
 import math
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pytest
@@ -172,8 +173,8 @@ def test_each_bound_withholds_the_field_and_lowers_the_mode(field: str, value: o
     assert guard.withheld == 1
 
 
-def _fields(sol: Solution) -> dict[str, object]:
-    return {name: getattr(sol, name) for name in Solution.__slots__}  # type: ignore[attr-defined]
+def _fields(sol: Solution) -> dict[str, Any]:
+    return {name: getattr(sol, name) for name in Solution.__slots__}
 
 
 @pytest.mark.parametrize("sigma_deg", [None, 2.6, math.nan])

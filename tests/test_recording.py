@@ -6,6 +6,7 @@ import itertools
 import subprocess
 import sys
 from pathlib import Path
+from typing import TypedDict, Unpack
 
 import pytest
 
@@ -27,7 +28,16 @@ def run_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return out
 
 
-def record(run_dir: Path, directory: Path, seconds: float, **section: float) -> InputRecorder:
+class Limits(TypedDict, total=False):
+    """The [recording] fields a test may set (RecordingSection)."""
+
+    max_file_mb: float
+    keep_files: int
+
+
+def record(
+    run_dir: Path, directory: Path, seconds: float, **section: Unpack[Limits]
+) -> InputRecorder:
     """Record the first ``seconds`` of a simulated run as the service would."""
     recorder = InputRecorder(RecordingSection(enabled=True, directory=str(directory), **section))
     recorder.open()

@@ -77,7 +77,7 @@ def test_bad_rates_are_refused() -> None:
 
 def test_frames_of_one_instant_share_the_sid_which_advances_per_instant() -> None:
     scheduler = OutputScheduler()
-    sids = []
+    sids: list[int] = []
     for s in solutions(1.0):
         frames = list(scheduler.frames(s, LOOP))
         sid_frames = [

@@ -92,7 +92,7 @@ def lagged_differences_deg(
     live frames in the ``skip`` intervals are not compared."""
     t_live, a_live = attitude_deg(live)
     t_ref, a_ref = attitude_deg(reference)
-    rows = []
+    rows: list[npt.NDArray[np.float64]] = []
     for t, a in zip(t_live, a_live, strict=True):
         if t < after or any(p0 <= t <= p1 for p0, p1 in skip):
             continue
@@ -101,8 +101,8 @@ def lagged_differences_deg(
             d = np.abs(a_ref[lo:hi] - a)
             d[:, 2] = np.abs((d[:, 2] + 180.0) % 360.0 - 180.0)
             rows.append(d.min(axis=0))
-    rows = np.array(rows)
-    return rows[~np.isnan(rows).any(axis=1)]  # yaw not available yet
+    errors = np.array(rows)
+    return errors[~np.isnan(errors).any(axis=1)]  # yaw not available yet
 
 
 def check_plausible(live: list[Decoded], truth: Truth, speed: float, log: Path) -> None:
@@ -269,10 +269,9 @@ def test_subprocess_on_udp_multicast_in_real_time(
     port = random.randrange(43200, 43999)  # a group of its own: other tests may use the default
     out_log = tmp_path / "live.log"
     notify = NotifySocket(tmp_path / "notify.sock")
-    bus_args = {"interface": "udp_multicast", "channel": GROUP, "port": port}
     with (
-        can.Bus(**bus_args) as tx,
-        can.Bus(**bus_args) as rx,
+        can.Bus(interface="udp_multicast", channel=GROUP, port=port) as tx,
+        can.Bus(interface="udp_multicast", channel=GROUP, port=port) as rx,
         CandumpWriter(out_log) as writer,
         SyncedPlayback(run_dir / "imu.log", run_dir / "gnss.nmea", tx, 1.0, 45.0) as pb,
     ):

@@ -1,14 +1,18 @@
-"""J1939 / ISO 11783 identifiers: the PGNs navgw sends or answers, and 29-bit id packing.
+"""J1939 / ISO 11783 identifiers: the PGNs navgw sends or answers, and 29-bit ids.
 
 A 29-bit id is ``priority << 26 | PGN << 8 | SA``. For a PDU1 PGN (PDU format byte < 240)
 the low byte of the PGN is the destination address instead (J1939-21): the PGN itself then
-ends in 0x00 and the id carries the destination there.
+ends in 0x00 and the id carries the destination there. The packing is cantools'
+(:mod:`cantools.j1939`); a gateway uses a handful of ids, so both directions are cached.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 from enum import IntEnum
+from functools import cache
+
+from cantools import j1939
 
 DEFAULT_SOURCE_ADDRESS = 0x1C  # navgw's preferred address (SPEC 4)
 DEFAULT_MANUFACTURER_CODE = 2046  # SPEC 4: none assigned
@@ -45,16 +49,13 @@ class IndustryGroup(IntEnum):
     INDUSTRIAL = 5
 
 
-def is_pdu1(pgn: int) -> bool:
-    """True when the PGN's low byte is a destination address (PDU format < 240)."""
-    return (pgn >> 8) & 0xFF < PDU2_MIN_FORMAT
-
-
+@cache
 def can_id(pgn: int, source: int, priority: int, destination: int = GLOBAL_ADDRESS) -> int:
     """The 29-bit id of a frame; ``destination`` is used only for PDU1 PGNs."""
-    if is_pdu1(pgn):
-        pgn = (pgn & 0x3FF00) | destination
-    return (priority & 0x7) << 26 | (pgn & 0x3FFFF) << 8 | (source & 0xFF)
+    reserved, data_page, pdu_format, pdu_specific = j1939.pgn_unpack(pgn)
+    if pdu_format < PDU2_MIN_FORMAT:
+        pdu_specific = destination
+    return int(j1939.frame_id_pack(priority, reserved, data_page, pdu_format, pdu_specific, source))
 
 
 @dataclass(frozen=True, slots=True)
@@ -67,11 +68,14 @@ class FrameId:
     destination: int
 
     @classmethod
+    @cache
     def parse(cls, arbitration_id: int) -> FrameId:
         """Split a 29-bit id into priority, PGN (low byte 0 for PDU1), source, destination."""
-        pgn = (arbitration_id >> 8) & 0x3FFFF
-        destination = GLOBAL_ADDRESS
-        if is_pdu1(pgn):
-            destination = pgn & 0xFF
-            pgn &= 0x3FF00
-        return cls((arbitration_id >> 26) & 0x7, pgn, arbitration_id & 0xFF, destination)
+        parts = j1939.frame_id_unpack(arbitration_id & 0x1FFFFFFF)
+        pdu1 = parts.pdu_format < PDU2_MIN_FORMAT
+        return cls(
+            parts.priority,
+            j1939.pgn_from_frame_id(arbitration_id & 0x1FFFFFFF),
+            parts.source_address,
+            parts.pdu_specific if pdu1 else GLOBAL_ADDRESS,
+        )

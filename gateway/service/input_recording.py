@@ -54,11 +54,6 @@ class InputRecorder:
         self._nmea: NmeaLogWriter | None = None
         self._writes = 0
 
-    @property
-    def active(self) -> bool:
-        """True while recording (opened and no write error yet)."""
-        return self._can is not None
-
     def open(self) -> None:
         """Start the first pair; raises OSError if the directory cannot be used."""
         self.directory.mkdir(parents=True, exist_ok=True)

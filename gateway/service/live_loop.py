@@ -43,12 +43,13 @@ import signal
 import time
 from collections import deque
 from collections.abc import Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import can
 from can.typechecking import CanFilter
 
+from drivers.backoff import Backoff
 from drivers.errors import BusError
 from drivers.frame_reader import FrameReader
 from drivers.gnss_serial import GnssSerialReader
@@ -126,24 +127,6 @@ class Inbox:
     def empty(self) -> bool:
         """True when nothing waits for the core."""
         return self._queue.empty()
-
-
-@dataclass
-class Backoff:
-    """Retry delays: ``initial_s``, doubling up to ``max_s``; :meth:`reset` after a success."""
-
-    initial_s: float = 0.5
-    max_s: float = 10.0
-    _next_s: float = field(default=0.0, init=False)
-
-    def next(self) -> float:
-        """The delay before the next attempt."""
-        self._next_s = min(self.max_s, 2.0 * self._next_s) if self._next_s else self.initial_s
-        return self._next_s
-
-    def reset(self) -> None:
-        """Start again from ``initial_s``."""
-        self._next_s = 0.0
 
 
 @dataclass

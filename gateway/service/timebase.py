@@ -26,11 +26,6 @@ class TimeBase:
         if not self.speed > 0.0:
             raise ValueError(f"speed={self.speed}: expected > 0")
 
-    @classmethod
-    def scaled(cls, origin: float, speed: float, origin_wall: float | None = None) -> TimeBase:
-        """Service time ``origin`` at wall time ``origin_wall`` (default now), ``speed`` x."""
-        return cls(origin, time.time() if origin_wall is None else origin_wall, speed)
-
     def at(self, t_wall: float) -> float:
         """Service time of host wall-clock time ``t_wall``."""
         return self.origin + (t_wall - self.origin_wall) * self.speed

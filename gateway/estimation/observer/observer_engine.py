@@ -62,9 +62,12 @@ STATIONARY_RATE_WINDOW_S = 0.2
 GYRO_BIAS_FLOOR_RPS = 0.01 * DEG_TO_RAD
 ACCEL_BIAS_FLOOR_MPS2 = 0.01
 
-# history row: (t, integral of f_p N, E, D, platform heading psi, cumulative heading
-# correction, integral of the bias-corrected body rate x, y, z)
+# History row: a plain tuple (one per IMU sample, so no object overhead), read by these names:
+# time; integral of f_p N, E, D (m/s); platform heading psi; cumulative heading correction;
+# integral of the bias-corrected body rate x, y, z (rad).
 _Row = tuple[float, float, float, float, float, float, float, float, float]
+_T, _SF, _PSI, _HC, _WI = 0, slice(1, 4), 4, 5, slice(6, 9)
+_SF_N, _SF_E, _SF_D, _WI_X, _WI_Y, _WI_Z = 1, 2, 3, 6, 7, 8
 
 
 log = logging.getLogger(__name__)
@@ -361,12 +364,12 @@ class ObserverEngine:
             self._zero_rate_start = None
             return
         start = self._zero_rate_start
-        if start is None or t_e - start[0] < self.cfg.gyro_z_window_s:
+        if start is None or t_e - start[_T] < self.cfg.gyro_z_window_s:
             if start is None:
                 self._zero_rate_start = row
             return
-        window_s = t_e - start[0]
-        self._heading.observe_zero_rate(t_e, (row[8] - start[8]) / window_s, window_s)
+        window_s = t_e - start[_T]
+        self._heading.observe_zero_rate(t_e, (row[_WI_Z] - start[_WI_Z]) / window_s, window_s)
         assert self._observer is not None
         self._observer.set_gyro_bias_z(self._heading.bg_z_rps)
         self._zero_rate_start = row
@@ -385,16 +388,16 @@ class ObserverEngine:
     def _history_at(self, t_s: float) -> _Row | None:
         """History row interpolated at ``t_s``; None if older than the history."""
         hist = self._hist
-        if not hist or t_s < hist[0][0]:
+        if not hist or t_s < hist[0][_T]:
             return None
-        if t_s >= hist[-1][0]:
+        if t_s >= hist[-1][_T]:
             return hist[-1]
-        i = bisect_left(hist, t_s, key=lambda r: r[0])
+        i = bisect_left(hist, t_s, key=lambda r: r[_T])
         a, b = hist[i - 1], hist[i]
-        u = (t_s - a[0]) / (b[0] - a[0])
-        psi = (a[4] + u * wrap_pi(b[4] - a[4])) % (2.0 * math.pi)
+        u = (t_s - a[_T]) / (b[_T] - a[_T])
+        psi = (a[_PSI] + u * wrap_pi(b[_PSI] - a[_PSI])) % (2.0 * math.pi)
         sf_n, sf_e, sf_d, _, hc, wx, wy, wz = (
-            x + u * (y - x) for x, y in zip(a[1:], b[1:], strict=True)
+            x + u * (y - x) for x, y in zip(a[_T + 1 :], b[_T + 1 :], strict=True)
         )
         return (t_s, sf_n, sf_e, sf_d, psi, hc, wx, wy, wz)
 
@@ -403,14 +406,16 @@ class ObserverEngine:
         (integral of w_b from the history; the platform control rate is negligible over the
         ~0.1 s of receiver latency). A bump rolls the mast by ~0.5 deg in 70 ms."""
         last = self._hist[-1]
-        return c_bn @ exp_so3((row[6] - last[6], row[7] - last[7], row[8] - last[8]))
+        return c_bn @ exp_so3(
+            (row[_WI_X] - last[_WI_X], row[_WI_Y] - last[_WI_Y], row[_WI_Z] - last[_WI_Z])
+        )
 
     def _mean_rate(self, t0_s: float, row: _Row) -> np.ndarray:
         """Mean bias-corrected body rate (3,) over [t0_s, row time], from the history."""
         row0 = self._history_at(t0_s)
-        if row0 is None or row[0] <= row0[0]:
+        if row0 is None or row[_T] <= row0[_T]:
             return np.array(self._observer.w_b_rps if self._observer is not None else (0, 0, 0.0))
-        return (np.array(row[6:9]) - np.array(row0[6:9])) / (row[0] - row0[0])
+        return (np.array(row[_WI]) - np.array(row0[_WI])) / (row[_T] - row0[_T])
 
     def _correct_tilt(self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row) -> bool:
         """Eq. (3) over exactly the GNSS interval; returns True for a glitch.
@@ -444,9 +449,9 @@ class ObserverEngine:
             self._prev_epoch = current
             self._set_tilt_open()
             return False
-        prow = prev[3]
-        e_n = (v_imu_n - prev[1]) / interval_s - (row[1] - prow[1]) / interval_s
-        e_e = (v_imu_e - prev[2]) / interval_s - (row[2] - prow[2]) / interval_s
+        _, vn_prev, ve_prev, prow = prev
+        e_n = (v_imu_n - vn_prev) / interval_s - (row[_SF_N] - prow[_SF_N]) / interval_s
+        e_e = (v_imu_e - ve_prev) / interval_s - (row[_SF_E] - prow[_SF_E]) / interval_s
         last = self._t_last_epoch_s
         period_s = interval_s if last is None else min(interval_s, max(t_e - last, 1e-3))
         scale = interval_s / period_s
@@ -546,14 +551,14 @@ class ObserverEngine:
             else:
                 return
             # yaw at t_e is psi_e; move it onto the reference, keep the gyro motion since t_e
-            obs.rotate_about_vertical(wrap_pi(target - row[4]))
+            obs.rotate_about_vertical(wrap_pi(target - row[_PSI]))
             self._heading_aligned = True
             self._heading.aligned(sigma)
             return
         ref = self._heading.select_reference(
-            t_e, row[4], cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
+            t_e, row[_PSI], cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
         )
-        corr = self._heading.correct(t_e, row[4], ref, row[5], float(c_bn[2, 2]), obs.learn)
+        corr = self._heading.correct(t_e, row[_PSI], ref, row[_HC], float(c_bn[2, 2]), obs.learn)
         if corr.step_rad:
             obs.rotate_about_vertical(corr.step_rad)
         self._w_pz_rps = corr.w_pz_rps
@@ -596,7 +601,7 @@ class ObserverEngine:
         if row is None:
             if len(self._hist) == HISTORY_LEN:  # not an epoch from before the engine started
                 self.counters.late_epochs += 1
-                self._log.warning(t_e, late_epoch_text(t_e, self._hist[0][0]), "late")
+                self._log.warning(t_e, late_epoch_text(t_e, self._hist[0][_T]), "late")
             return
         if not self._nav_valid:
             age = self._t_s - t_e
@@ -610,11 +615,11 @@ class ObserverEngine:
             self._nav_valid = True
             self._t_pos_epoch_s = t_e
             return
-        age = self._t_s - row[0]
+        age = self._t_s - row[_T]
         v_e = [
-            v[0] - (sf[0] - row[1]),
-            v[1] - (sf[1] - row[2]),
-            v[2] - (sf[2] - row[3]) - GRAVITY_MPS2 * age,
+            v[0] - (sf[0] - row[_SF_N]),
+            v[1] - (sf[1] - row[_SF_E]),
+            v[2] - (sf[2] - row[_SF_D]) - GRAVITY_MPS2 * age,
         ]
         dp = [float(p_ref[i]) - (p[i] - 0.5 * (v[i] + v_e[i]) * age) for i in range(3)]
         interval_s = min(t_e - (self._t_pos_epoch_s or t_e), self.cfg.max_gnss_interval_s)
@@ -749,7 +754,7 @@ class ObserverEngine:
         if not self._hist:
             return None
         last = self._hist[-1]
-        return float(c_bn[2] @ self._mean_rate(last[0] - OUTPUT_RATE_WINDOW_S, last))
+        return float(c_bn[2] @ self._mean_rate(last[_T] - OUTPUT_RATE_WINDOW_S, last))
 
     def _coasting_s(self) -> float:
         """Time since usable GNSS velocity stopped, 0 while it flows (receive-time clock)."""

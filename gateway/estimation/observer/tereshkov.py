@@ -74,7 +74,6 @@ class TereshkovObserver:
         self._exp_dt = 0.0
         self._n_since_ortho = 0
         self.w_b_rps: Float3 = (0.0, 0.0, 0.0)  # last bias-corrected rate, body
-        self.f_b_mps2: Float3 = (0.0, 0.0, 0.0)  # last bias-corrected specific force, body
 
     # ----------------------------------------------------------------------- prediction
 
@@ -104,7 +103,6 @@ class TereshkovObserver:
         if self.learn:
             self._learn(w_p, wz, dt)
         self.w_b_rps = (wx, wy, wz)
-        self.f_b_mps2 = (fx, fy, fz)
         return (
             c00 * fx + c01 * fy + c02 * fz,
             c10 * fx + c11 * fy + c12 * fz,
