@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from enum import Enum
+
 
 class DriverError(Exception):
     """Base of every error a driver raises (bus failure, unreadable input, bad config)."""
@@ -19,3 +21,11 @@ class InputError(DriverError):
 
 class BusError(DriverError):
     """The CAN bus (or the interface under it) failed while a driver was reading it."""
+
+
+class ErrorPolicy(Enum):
+    """What a decoder does with input it cannot use (pynmeagps' quitonerror, by name)."""
+
+    RAISE = "raise"  # stop at the first: InputError (strict tools, tests)
+    LOG = "log"  # count, warn at a limited rate, skip (the service and replay: the default)
+    IGNORE = "ignore"  # count and skip quietly (fuzzing, bulk re-processing)

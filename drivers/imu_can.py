@@ -68,8 +68,9 @@ from can.typechecking import CanFilter
 
 import dbc
 from dbc.fast_decode import LittleEndianDecoder
+from drivers.errors import ErrorPolicy
 from drivers.frame_reader import FrameReader
-from drivers.log_limit import LogLimiter
+from drivers.log_limit import BadInput
 from drivers.logs.candump import CandumpReader, read_candump
 from drivers.samples import ImuAux, ImuCounters, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
@@ -155,6 +156,7 @@ class ImuCanConfig:
     wrap_check_s: float = 0.25  # arrivals late by over half a SEQ wrap this long: missed wraps
     pair_timeout_s: float = 0.05  # a half (gyro or accel) waits this long for its partner
     warn_interval_s: float = 10.0  # at most one warning per kind per this much frame time
+    on_error: ErrorPolicy = ErrorPolicy.LOG  # malformed frames: raise, log (and skip), ignore
 
 
 class WarningKind(Enum):
@@ -238,7 +240,7 @@ class ImuDecoder:
         base = min(s.start for s in diag)
         self._diag_bits = {s.name: s.start - base for s in diag}
         self._pending: dict[tuple[ImuFrame, int], _Half] = {}
-        self._log = LogLimiter(log, self.config.warn_interval_s)
+        self._bad = BadInput(log, self.config.on_error, self.config.warn_interval_s)
         self._dec: int | None = None
         self._dt = 0.0
         self._half_wrap = 0.0  # 128 dt
@@ -604,12 +606,13 @@ class ImuDecoder:
 
     def _malformed(self, t: float, what: str, expected: str) -> list[ImuSample | ImuAux]:
         self.counters.malformed += 1
-        self._warn(WarningKind.MALFORMED, t, f"malformed {what} dropped; expected {expected}")
+        where = f"IMU CAN frame at t={t:.6f}"
+        self._bad.bad(t, WarningKind.MALFORMED, where, f"malformed {what} dropped", expected)
         return []
 
     def _warn(self, kind: WarningKind, t: float, text: str) -> None:
         """Log at most one warning of ``kind`` per ``warn_interval_s`` of frame time."""
-        self._log.warning(t, text, kind)
+        self._bad.note(t, kind, text)
 
 
 async def read_bus(

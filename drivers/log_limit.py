@@ -14,6 +14,8 @@ import math
 from collections.abc import Hashable
 from dataclasses import dataclass, field
 
+from drivers.errors import ErrorPolicy, InputError
+
 LOG_INTERVAL_S = 10.0  # at most one warning per kind per this long
 
 
@@ -43,3 +45,31 @@ class LogLimiter:
         self.logger.warning("%s%s", text, more)
         state.last_t, state.suppressed = t, 0
         return True
+
+
+@dataclass
+class BadInput:
+    """Input a decoder cannot use, handled under the caller's :class:`ErrorPolicy`: raised as
+    :class:`InputError`, logged at a limited rate (one line per kind per ``interval_s``), or
+    skipped quietly. The caller counts it either way."""
+
+    logger: logging.Logger
+    policy: ErrorPolicy = ErrorPolicy.LOG
+    interval_s: float = LOG_INTERVAL_S
+    _log: LogLimiter = field(init=False)
+
+    def __post_init__(self) -> None:
+        self._log = LogLimiter(self.logger, self.interval_s)
+
+    def bad(self, t: float, kind: Hashable, where: str, what: str, expected: str) -> None:
+        """Unusable input at ``where`` (input time ``t``): ``what`` was wrong, what was
+        ``expected``; it is dropped."""
+        if self.policy is ErrorPolicy.RAISE:
+            raise InputError(what, where, expected)
+        if self.policy is ErrorPolicy.LOG:
+            self._log.warning(t, f"{where}: {what}; expected {expected}", kind)
+
+    def note(self, t: float, kind: Hashable, text: str) -> None:
+        """Something worth a warning that is not an error (input accepted, data lost)."""
+        if self.policy is not ErrorPolicy.IGNORE:
+            self._log.warning(t, text, kind)

@@ -44,7 +44,8 @@ from os import PathLike
 
 import pynmea2
 
-from drivers.log_limit import LogLimiter
+from drivers.errors import ErrorPolicy
+from drivers.log_limit import BadInput
 from drivers.logs.nmea_log import NmeaLogReader, read_nmea_log
 from drivers.samples import FixQuality, GnssFix
 from drivers.units import SECONDS_PER_DAY
@@ -284,6 +285,7 @@ class NmeaDecoder:
         require_checksum: bool = False,
         max_sentence_len: int = 256,
         warn_interval_s: float = 10.0,
+        on_error: ErrorPolicy = ErrorPolicy.LOG,
         on_sentence: Callable[[float | None, str], None] | None = None,
     ) -> None:
         self.source = source
@@ -302,7 +304,7 @@ class NmeaDecoder:
         self._last_tod_s: float | None = None
         self._fixes: list[GnssFix] = []
         self._now = 0.0  # input time for warning rate limits
-        self._log = LogLimiter(log, warn_interval_s)
+        self._bad = BadInput(log, on_error, warn_interval_s)
 
     # --- input ---------------------------------------------------------------------------------
 
@@ -328,20 +330,23 @@ class NmeaDecoder:
             pos = end
             if len(self._candidate) > self.max_sentence_len:
                 self.counters.overlong += 1
-                self._warn(
-                    "overlong",
-                    f"{self._candidate_where}: sentence longer than {self.max_sentence_len} "
-                    f"bytes without a line end dropped: {self._show(self._candidate)} "
-                    "(expected CR/LF)",
-                )
+                shown = self._show(self._candidate)
                 self._candidate = None
+                self._bad.bad(
+                    self._now,
+                    "overlong",
+                    self._candidate_where,
+                    f"sentence longer than {self.max_sentence_len} bytes without a line end "
+                    f"dropped: {shown}",
+                    "CR/LF",
+                )
             elif m is not None:
                 if data[end] in _CR_LF:
-                    self._sentence(self._candidate.decode("ascii"), t_host)
+                    text, self._candidate = self._candidate.decode("ascii"), None
                     pos = end + 1
+                    self._sentence(text, t_host)  # (raises InputError under RAISE)
                 else:
                     self._truncated(f"cut by byte 0x{data[end]:02X}")
-                self._candidate = None
         self._offset += n
         return self._take()
 
@@ -359,7 +364,6 @@ class NmeaDecoder:
         """End of stream (or port lost): drop a partial sentence, emit the pending epoch."""
         if self._candidate is not None:
             self._truncated("cut by the end of the stream")
-            self._candidate = None
         if self._epoch is not None:
             self._close_epoch(learn=False)
         return self._take()
@@ -370,19 +374,25 @@ class NmeaDecoder:
         junk = end - start - data.count(b"\r", start, end) - data.count(b"\n", start, end)
         if junk:
             self.counters.skipped_bytes += junk
-            self._warn(
+            self._bad.bad(
+                self._now,
                 "junk",
-                f"{self._where(self._offset + start)}: skipped {junk} non-NMEA bytes "
-                "(expected '$' or '!' to start a sentence)",
+                self._where(self._offset + start),
+                f"skipped {junk} non-NMEA bytes",
+                "'$' or '!' to start a sentence",
             )
 
     def _truncated(self, why: str) -> None:
         assert self._candidate is not None
         self.counters.truncated += 1
-        self._warn(
+        shown = self._show(self._candidate)
+        self._candidate = None
+        self._bad.bad(
+            self._now,
             "truncated",
-            f"{self._candidate_where}: truncated sentence {self._show(self._candidate)} "
-            f"dropped, {why} (expected '*hh' and CR/LF)",
+            self._candidate_where,
+            f"truncated sentence {shown} dropped, {why}",
+            "'*hh' and CR/LF",
         )
 
     def _where(self, offset: int) -> str:
@@ -409,22 +419,31 @@ class NmeaDecoder:
             expected = nmea_checksum(body)
             if len(checksum) != 2 or checksum.upper() != f"{expected:02X}":
                 self.counters.checksum_errors += 1
-                self._warn(
+                self._bad.bad(
+                    self._now,
                     "checksum",
-                    f"{where}: bad checksum in {self._show(text)}: got *{checksum}, "
-                    f"expected *{expected:02X}; sentence dropped",
+                    where,
+                    f"bad checksum in {self._show(text)}: got *{checksum}, sentence dropped",
+                    f"*{expected:02X}",
                 )
                 return
         else:
             self.counters.no_checksum += 1
-            action = "dropped" if self.require_checksum else "accepted"
-            self._warn(
+            if self.require_checksum:
+                self._bad.bad(
+                    self._now,
+                    "no_checksum",
+                    where,
+                    f"sentence without checksum dropped: {self._show(text)}",
+                    "'*hh' before the line end",
+                )
+                return
+            self._bad.note(
+                self._now,
                 "no_checksum",
-                f"{where}: sentence without checksum {action}: {self._show(text)} "
+                f"{where}: sentence without checksum accepted: {self._show(text)} "
                 "(expected '*hh' before the line end)",
             )
-            if self.require_checksum:
-                return
         address = body.split(",", 1)[0]
         kind = address[2:] if len(address) == 5 and address[0] != "P" else address
         by_type = self.counters.by_type
@@ -441,8 +460,12 @@ class NmeaDecoder:
             values = _decode_fields(pynmea2.parse(text[0] + body), layout, complete=not star)
         except (ValueError, OverflowError) as exc:  # ParseError is a ValueError; huge dates
             self.counters.parse_errors += 1
-            self._warn(
-                "parse", f"{where}: cannot decode {self._show(text)}: {exc}; sentence dropped"
+            self._bad.bad(
+                self._now,
+                "parse",
+                where,
+                f"cannot decode {self._show(text)}: {exc}, sentence dropped",
+                "fields as NMEA 0183 defines them",
             )
             return
         self.counters.sentences_ok += 1
@@ -568,10 +591,6 @@ class NmeaDecoder:
         return fixes
 
     # --- warnings ------------------------------------------------------------------------------
-
-    def _warn(self, kind: str, message: str) -> None:
-        """Log at most one warning per kind per ``warn_interval_s`` of input time."""
-        self._log.warning(self._now, message, kind)
 
 
 def _num(values: dict[str, Value] | None, name: str) -> float | None:

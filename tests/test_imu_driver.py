@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import asyncio
 import itertools
+import logging
 import math
 from collections.abc import AsyncGenerator
 from dataclasses import replace
@@ -16,6 +17,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from drivers.errors import ErrorPolicy, InputError
 from drivers.imu_can import ImuCanConfig, ImuCanIds, ImuDecoder, read_bus, read_log
 from drivers.logs.candump import read_candump, write_candump
 from drivers.samples import ImuAux, ImuSample
@@ -283,3 +285,23 @@ def test_arbitrary_frames_never_raise_out_of_the_decoder(
         for item in dec.feed(msg):
             assert isinstance(item, ImuSample | ImuAux)
     dec.finish()
+
+
+@pytest.mark.parametrize("policy", list(ErrorPolicy))
+def test_malformed_frames_follow_the_callers_policy(
+    policy: ErrorPolicy, caplog: pytest.LogCaptureFixture
+) -> None:
+    """A gyro frame of 7 bytes: InputError under RAISE, one warning under LOG, silence under
+    IGNORE; counted as malformed in every case."""
+    ids = ImuCanIds.for_source_address()
+    dec = ImuDecoder(ImuCanConfig(ids=ids, on_error=policy))
+    short = can.Message(timestamp=5.0, arbitration_id=ids.gyro, data=bytes(7))
+    with caplog.at_level(logging.WARNING, logger="drivers.imu_can"):
+        if policy is ErrorPolicy.RAISE:
+            with pytest.raises(InputError, match="malformed") as err:
+                dec.feed(short)
+            assert "8 bytes" in err.value.expected
+        else:
+            assert dec.feed(short) == []
+    assert dec.counters.malformed == 1
+    assert len(caplog.messages) == (1 if policy is ErrorPolicy.LOG else 0)

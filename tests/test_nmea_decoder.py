@@ -11,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from drivers.errors import ErrorPolicy, InputError
 from drivers.nmea import KNOT_MPS, NmeaDecoder, nmea_checksum, read_fixes_from_log
 from drivers.samples import FixQuality, GnssFix
 
@@ -189,7 +190,7 @@ def test_bad_checksum_dropped_counted_and_reported(caplog: pytest.LogCaptureFixt
         _, decoder = decode(data)
     assert decoder.counters.checksum_errors == 1 and decoder.counters.sentences_ok == 0
     assert caplog.messages == [
-        f"test byte 2: bad checksum in '{bad}': got *00, expected *{good[-2:]}; sentence dropped"
+        f"test byte 2: bad checksum in '{bad}': got *00, sentence dropped; expected *{good[-2:]}"
     ]
 
 
@@ -223,13 +224,14 @@ def test_truncated_sentences(caplog: pytest.LogCaptureFixture) -> None:
         {"HDT": 2, "GGA": 1},
     )
     assert caplog.messages[0] == (
-        "test byte 0: truncated sentence '$GPGGA,1235' dropped, cut by byte 0xD3 "
-        "(expected '*hh' and CR/LF)"
+        "test byte 0: truncated sentence '$GPGGA,1235' dropped, cut by byte 0xD3; "
+        "expected '*hh' and CR/LF"
     )
     assert caplog.messages[-1] == (
         f"test byte {len(cut_by_binary + cut_by_start)}: "
         f"cannot decode '{cut_short.decode().strip()}': "
-        "6 fields, expected at least 14; sentence dropped"
+        "6 fields, expected at least 14, sentence dropped; expected fields as NMEA 0183 "
+        "defines them"
     )
 
 
@@ -250,7 +252,8 @@ def test_parse_errors_and_unsupported(caplog: pytest.LogCaptureFixture) -> None:
     c = decoder.counters
     assert (fixes, c.parse_errors, c.unsupported, c.by_type["PUBX"]) == ([], 2, 2, 1)
     assert caplog.messages == [
-        f"test byte 0: cannot decode '{lines[0]}': '9107.0380' is beyond 90 deg; sentence dropped"
+        f"test byte 0: cannot decode '{lines[0]}': '9107.0380' is beyond 90 deg, sentence "
+        "dropped; expected fields as NMEA 0183 defines them"
     ]
 
 
@@ -328,3 +331,24 @@ def test_junk_sentence_types_do_not_grow_the_counters() -> None:
     by_type = decoder.counters.by_type
     assert len(by_type) <= 64 + 1 + 6 and sum(by_type.values()) == 5000 + 6
     assert by_type["GGA"] == by_type["RMC"] == 1 and len(fixes) == 1
+
+
+@pytest.mark.parametrize("policy", list(ErrorPolicy))
+def test_the_caller_chooses_what_bad_input_does(
+    policy: ErrorPolicy, caplog: pytest.LogCaptureFixture
+) -> None:
+    """pynmeagps-style: raise at the first bad sentence, log it (default), or skip quietly;
+    counted in every case, and the good sentences before it are kept."""
+    good = stream(*epoch())
+    bad = b"$GNHDT,270.0,T*00\r\n"
+    decoder = NmeaDecoder("test", on_error=policy)
+    with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+        fixes = decoder.feed(good, 1.0)
+        if policy is ErrorPolicy.RAISE:
+            with pytest.raises(InputError, match="bad checksum") as err:
+                decoder.feed(bad, 1.1)
+            assert err.value.expected == "*2E" and err.value.where == f"test byte {len(good)}"
+        else:
+            decoder.feed(bad, 1.1)
+    assert decoder.counters.checksum_errors == 1 and len(fixes + decoder.flush()) == 1
+    assert len(caplog.messages) == (1 if policy is ErrorPolicy.LOG else 0)
