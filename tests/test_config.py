@@ -49,12 +49,12 @@ def test_example_explains_every_engine_key_in_plain_text(tmp_path: Path) -> None
     text = example_toml()
     assert ":class:" not in text and "`" not in text
     commented_key = re.compile(r"^(?:# )?(\w+) = .+  # \S")
-    shared = set(GatewayConfig().shared())  # given in [vehicle] and [gnss] instead
     for name, cls in ENGINE_SECTIONS.items():
+        shared = set(GatewayConfig().shared(cls))  # given in [vehicle], [gnss], [imu] instead
         lines = text.split(f"\n[{name}]\n")[1].split("\n\n")[0].splitlines()
         assert lines[0] == (
-            f'# tuning of engine = "{name}"; its lever arms and GNSS timing are set in '
-            "[vehicle] and [gnss]"
+            f'# tuning of engine = "{name}"; its lever arms, GNSS timing and IMU figures are set '
+            "in [vehicle] and [gnss] and [imu]"
         )
         keys = [m[1] for line in lines[1:] if (m := commented_key.match(line))]
         assert len(keys) == len(lines) - 1, [line for line in lines if "  # " not in line]

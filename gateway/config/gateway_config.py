@@ -71,12 +71,39 @@ class EstimatorSection:
 
 @dataclass(frozen=True)
 class ImuSection:
-    """[imu]: the CAN bus of the ADIS16334 bridge (SPEC 1)."""
+    """[imu]: the CAN bus of the ADIS16334 bridge (SPEC 1) and the IMU's datasheet figures."""
 
     interface: str = field(default="socketcan", metadata=_doc("python-can interface"))
     channel: str = field(default="can0", metadata=_doc("python-can channel"))
     bridge_source_address: int = field(
         default=0x80, metadata=_doc("source address of the bridge's frames", **in_range(0, 253))
+    )
+    # the IMU's figures, used by both engines (ADIS16334 datasheet values)
+    gyro_arw_deg_per_sqrt_h: float = field(
+        default=2.0,
+        metadata=_doc("gyro angular random walk", **in_range(1e-6, 1e3)),
+    )
+    accel_vrw_mps_per_sqrt_h: float = field(
+        default=0.12,
+        metadata=_doc("accelerometer velocity random walk", **in_range(1e-6, 1e3)),
+    )
+    gyro_bias_stability_dps: float = field(
+        default=0.007,
+        metadata=_doc("gyro in-run bias stability (Allan floor)", **in_range(1e-9, 10.0)),
+    )
+    accel_bias_stability_mg: float = field(
+        default=0.1,
+        metadata=_doc("accelerometer in-run bias stability (Allan floor)", **in_range(1e-9, 1e3)),
+    )
+    bias_correlation_time_s: float = field(
+        default=100.0,
+        metadata=_doc("Gauss-Markov time of the in-run biases", **in_range(1e-3, 1e6)),
+    )
+    imu_fault_s: float = field(
+        default=1.0,
+        metadata=_doc(
+            "invalid or saturated IMU samples this long: FAULT", **in_range(1e-3, 3600.0)
+        ),
     )
 
 
@@ -174,7 +201,8 @@ class RecordingSection:
     enabled: bool = field(default=False, metadata=_doc("record IMU frames and NMEA sentences"))
     directory: str = field(default="/var/lib/navgw/recordings", metadata=_doc("where"))
     max_file_mb: float = field(
-        default=100.0, metadata=_doc("rotate a log at this size", **in_range(0.1, 1e5))
+        default=100.0,
+        metadata=_doc("rotate a log at this size", **in_range(0.1, 1e5)),
     )
     keep_files: int = field(
         default=20, metadata=_doc("oldest logs beyond this many are deleted", **in_range(1, 10_000))
@@ -201,6 +229,12 @@ _SHARED = {
     "imu_lever_arm_m": "vehicle",
     "epoch_time": "gnss",
     "receiver_latency_s": "gnss",
+    "gyro_arw_deg_per_sqrt_h": "imu",
+    "accel_vrw_mps_per_sqrt_h": "imu",
+    "gyro_bias_stability_dps": "imu",
+    "accel_bias_stability_mg": "imu",
+    "bias_correlation_time_s": "imu",
+    "imu_fault_s": "imu",
 }
 
 
@@ -218,9 +252,15 @@ class GatewayConfig:
     observer: ObserverConfig = field(default_factory=ObserverConfig)
     ekf: EkfConfig = field(default_factory=EkfConfig)
 
-    def shared(self) -> dict[str, Any]:
-        """The engine settings given once in [vehicle] and [gnss] (any engine's own ignored)."""
-        return {key: getattr(getattr(self, section), key) for key, section in _SHARED.items()}
+    def shared(self, engine_cls: type) -> dict[str, Any]:
+        """The settings of ``engine_cls`` given once in [vehicle], [gnss] and [imu] (any
+        engine's own ignored)."""
+        names = {f.name for f in dataclasses.fields(engine_cls)}
+        return {
+            key: getattr(getattr(self, section), key)
+            for key, section in _SHARED.items()
+            if key in names
+        }
 
     def with_engine(self, engine: Engine) -> GatewayConfig:
         """This config with another engine (``--engine`` on the command line)."""
@@ -237,8 +277,8 @@ class GatewayConfig:
     def engine_settings(self) -> ObserverConfig | EkfConfig:
         """The configured engine's tuning, with this config's geometry and timing."""
         if self.estimator.engine is Engine.EKF:
-            return dataclasses.replace(self.ekf, **self.shared())
-        return dataclasses.replace(self.observer, **self.shared())
+            return dataclasses.replace(self.ekf, **self.shared(EkfConfig))
+        return dataclasses.replace(self.observer, **self.shared(ObserverConfig))
 
 
 def config_from_table(table: dict[str, Any], where: str = "config") -> GatewayConfig:
@@ -320,7 +360,10 @@ def _section_header(name: str, cls: type) -> str:
     if name not in ENGINE_SECTIONS:
         return (cls.__doc__ or "").strip().splitlines()[0]
     shared = " and ".join(f"[{section}]" for section in dict.fromkeys(_SHARED.values()))
-    return f'tuning of engine = "{name}"; its lever arms and GNSS timing are set in {shared}'
+    return (
+        f'tuning of engine = "{name}"; its lever arms, GNSS timing and IMU figures are set '
+        f"in {shared}"
+    )
 
 
 def _toml_value(value: Any) -> str | None:

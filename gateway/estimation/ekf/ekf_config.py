@@ -84,7 +84,7 @@ class EkfConfig:
     gyro_xy_converged_dps: float = 0.005  # P 1-sigma for "gyro x/y bias converged"
     gyro_z_converged_dps: float = 0.02  # P 1-sigma for "gyro z bias converged"
     accel_xy_converged_mps2: float = 0.01  # P 1-sigma for "accel x/y bias converged"
-    imu_alarm_fault_s: float = 1.0  # IMU alarm/invalid data for this long: FAULT
+    imu_fault_s: float = 1.0  # invalid or saturated IMU data for this long: FAULT
 
 
 @dataclass(frozen=True)

@@ -29,8 +29,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -65,11 +64,12 @@ from gateway.estimation.ekf.error_state import (
     process_noise_psd,
     transition_matrix,
 )
+from gateway.estimation.engine_base import HeldEpochs, ImuHealth, base_solution
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
-from gateway.estimation.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
+from gateway.estimation.solution import Convergence, Mode, Solution, navigation_mode
 
 Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
@@ -173,8 +173,8 @@ class EkfEngine:
         self._ins: Strapdown | None = None
         self._p: Array | None = None  # error covariance (15, 15); None until heading is known
         self._hist: _History | None = None
-        self._pending: deque[tuple[float, GnssFix]] = deque(maxlen=16)
-        self._timing = ImuTiming()
+        self._held = HeldEpochs()  # epochs ahead of the IMU
+        self._imu = ImuHealth(self.cfg.imu_fault_s)  # timing, alarm, saturation, FAULT
         self._frame: LocalFrame | None = None  # local NED around the first position used
         self._t_s: float | None = None
         # alignment: mean specific force and rate over the current quiet window
@@ -197,23 +197,16 @@ class EkfEngine:
         # motion flags and IMU health
         self._reversing = False
         self._stationary = False
-        self._imu_alarm = False
-        self._bad_since_s: float | None = None
 
     # ======================================================================== prediction
 
     def imu(self, sample: ImuSample) -> None:
         """Propagate with one IMU sample (body frame, bias not yet removed)."""
-        t, dt = sample.t, self._timing.step(sample)
-        w, f = sample.w_ib_b.tolist(), sample.f_ib_b.tolist()
-        if not (dt > 0.0 and math.isfinite(t + dt + sum(w) + sum(f))):
-            self._mark_bad(t)
+        t = sample.t
+        step = self._imu.accept(sample)
+        if step is None:
             return
-        self._imu_alarm = sample.alarm
-        if sample.alarm or sample.saturated:
-            self._mark_bad(t)
-        else:
-            self._bad_since_s = None
+        dt, w, f = step
         if self._tuning is None:
             self._tuning = EkfTuning.from_config(self.cfg, dt)
             self._q_c = process_noise_psd(self._tuning)
@@ -231,9 +224,7 @@ class EkfEngine:
             self._predict()
             if t - self._t_nhc_s >= self.cfg.nhc_interval_s:
                 self._fuse_nonholonomic(t)
-        pending = self._pending
-        while pending and pending[0][0] <= t:
-            t_e, fix = pending.popleft()
+        for t_e, fix in self._held.due(t):
             self._fuse_epoch(fix, t_e)
 
     def _predict(self) -> None:
@@ -303,10 +294,8 @@ class EkfEngine:
         if self._ins is None or fix.quality == FixQuality.NONE:
             return
         t_e = self._clock.epoch_time(fix)
-        if self._t_s is None or t_e > self._t_s:
-            self._pending.append((t_e, fix))
-            return
-        self._fuse_epoch(fix, t_e)
+        if not self._held.hold(t_e, fix, self._t_s):
+            self._fuse_epoch(fix, t_e)
 
     def _fuse_epoch(self, fix: GnssFix, t_e: float) -> None:
         """Align, reset or fuse one epoch against the INS state at its epoch time ``t_e``."""
@@ -584,10 +573,6 @@ class EkfEngine:
         elif v_ref_b[0] > cfg.reverse_detect_speed_mps:
             self._reversing = False
 
-    def _mark_bad(self, t: float) -> None:
-        if self._bad_since_s is None:
-            self._bad_since_s = t
-
     # ========================================================================= read-out
 
     @property
@@ -634,20 +619,11 @@ class EkfEngine:
 
     def solution(self) -> Solution:
         """The current solution at the time of the last IMU sample."""
-        t = self._t_s if self._t_s is not None else 0.0
         fix = self._last_fix
-        common = {
-            "fix_quality": fix.quality if fix is not None else None,
-            "num_sats": fix.num_sats if fix is not None else None,
-            "hdop": fix.hdop if fix is not None else None,
-            "age_s": fix.age_s if fix is not None else None,
-            "imu_alarm": self._imu_alarm,
-            "imu_ok": self._t_s is not None and self._bad_since_s is None,
-            "is_ekf": True,
-        }
+        base = replace(base_solution(self._t_s, fix, self._imu), is_ekf=True)
         ins = self._ins
         if ins is None:
-            return Solution(t=t, mode=Mode.INITIALISING, **common)  # type: ignore[arg-type]
+            return base
         c_bn = ins.c_bn
         roll, pitch, yaw = rpy_from_dcm(c_bn)
         w_b = np.array(ins.w_b_lp_rps)
@@ -662,8 +638,8 @@ class EkfEngine:
         sig = self.bias_sigma()
         p = self._p
         cfg = self.cfg
-        return Solution(
-            t=t,
+        return replace(
+            base,
             mode=mode,
             roll_rad=roll,
             pitch_rad=pitch,
@@ -689,7 +665,6 @@ class EkfEngine:
                 accel_xy=sig is not None and max(sig[1][:2]) < cfg.accel_xy_converged_mps2,
                 learning_frozen=p is None or coasting_s > 0.0,
             ),
-            **common,  # type: ignore[arg-type]
         )
 
     def _coasting_s(self) -> float:
@@ -701,13 +676,12 @@ class EkfEngine:
 
     def _mode(self, coasting_s: float) -> Mode:
         return navigation_mode(
-            fault=self._bad_since_s is not None
-            and (self._t_s is None or self._t_s - self._bad_since_s >= self.cfg.imu_alarm_fault_s),
+            fault=self._imu.fault,
             aligned=self._p is not None,
             coasting=coasting_s > 0.0,
-            imu_alarm=self._imu_alarm,
+            imu_alarm=self._imu.alarm,
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
-            imu_gap=self._timing.degraded(),
+            imu_gap=self._imu.timing.degraded(),
             gnss_glitch=self._track.rejecting_since_s is not None,
         )

@@ -237,7 +237,7 @@ class HeadingChannel:
 
     def _predict_heading_variance(self, gap_s: float) -> None:
         """Heading error variance grows by ARW^2 gap + (sigma_bz gap)^2 without a reference."""
-        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
+        arw = self.cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self._p_psi_rad2 += arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
 
     def aligned(self, sigma_rad: float) -> None:
@@ -249,7 +249,7 @@ class HeadingChannel:
     def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> None:
         """Zero-rate update at rest: the mean bias-corrected body z rate over ``window_s``
         is the residual z bias, variance ARW^2 / window (engine vibration averages out)."""
-        arw = self.cfg.gyro_arw_dps_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
+        arw = self.cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
         self.kf.update(mean_w_z_rps, arw**2 / window_s)
         self._t_kf_s = t_s

@@ -38,7 +38,7 @@ class ObserverConfig:
     gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma (RTK carrier-phase Doppler)
 
     # --- IMU noise (ADIS16334 datasheet): roll/pitch sigma, heading gain, bias at rest ---
-    gyro_arw_dps_per_sqrt_h: float = 2.0  # gyro angular random walk
+    gyro_arw_deg_per_sqrt_h: float = 2.0  # gyro angular random walk
 
     # --- learning gates ---
     learning_fix_qualities: tuple[int, ...] = (2, 4, 5)  # GGA DGNSS, RTK fixed, RTK float

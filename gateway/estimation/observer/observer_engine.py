@@ -32,6 +32,7 @@ from gateway.estimation.attitude import (
     roll_pitch_from_specific_force,
     rpy_from_dcm,
 )
+from gateway.estimation.engine_base import HeldEpochs, ImuHealth, base_solution
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_track import GnssTrack
@@ -40,7 +41,7 @@ from gateway.estimation.lever_arm import reference_from_antenna, velocity_at
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.tereshkov import TereshkovObserver
-from gateway.estimation.solution import Convergence, ImuTiming, Mode, Solution, navigation_mode
+from gateway.estimation.solution import Convergence, Mode, Solution, navigation_mode
 
 #: History kept for late GNSS epochs, samples (5 s at 204.8 Hz): latency + one interval.
 HISTORY_LEN = 1024
@@ -108,7 +109,7 @@ class ObserverEngine:
         self._hc_rad = 0.0  # running integral of the heading control rate
         self._w_pz_rps = 0.0
         self._hist: deque[_Row] = deque(maxlen=HISTORY_LEN)
-        self._pending: deque[tuple[float, GnssFix]] = deque(maxlen=16)  # epochs ahead of IMU
+        self._held = HeldEpochs()  # epochs ahead of the IMU
         # reference-point navigation (NED around the first fix)
         self._p_ned_m = [0.0, 0.0, 0.0]
         self._v_ned_mps = [0.0, 0.0, 0.0]
@@ -125,7 +126,6 @@ class ObserverEngine:
         self._coasting = False  # GNSS velocity timed out: platform open loop
         # learning gates and convergence bookkeeping
         self._learn_ok_since_s: float | None = None
-        self._imu_upset = False  # alarm or saturation since the last epoch
         self._g_learn = 0.0  # integral of dt / tau_g while learning
         self._a_learn = 0.0  # integral of w_z^2 / omega_a dt while learning
         self._e_var_mps4 = 0.0  # running variance of one horizontal e component
@@ -136,33 +136,20 @@ class ObserverEngine:
         self._control_period_s = 0.0  # the epoch period they are meant for
         self._rejecting_since_s: float | None = None  # epoch time glitches began, if ongoing
         # IMU health
-        self._timing = ImuTiming()
+        self._imu = ImuHealth(cfg.imu_fault_s)  # timing, alarm, saturation, FAULT
         self.counters = ObserverCounters()
         self._log = LogLimiter(log)
         self._track = GnssTrack()  # the receiver's own track: glitch or engine off?
-        self._imu_alarm = False
-        self._bad_since_s: float | None = None  # start of a run of invalid/saturated samples
-        self._bad_for_s = 0.0  # length of that run so far
 
     # ======================================================================== prediction
 
     def imu(self, sample: ImuSample) -> None:
         """Propagate with one IMU sample (body frame, bias not yet removed)."""
         t = sample.t
-        dt = self._timing.step(sample)
-        w = sample.w_ib_b.tolist()
-        f = sample.f_ib_b.tolist()
-        if not (dt > 0.0 and math.isfinite(w[0] + w[1] + w[2] + f[0] + f[1] + f[2] + t)):
-            self._mark_bad(t)
+        step = self._imu.accept(sample)
+        if step is None:
             return
-        self._imu_alarm = sample.alarm
-        if sample.alarm or sample.saturated:
-            self._imu_upset = True
-        if sample.saturated:
-            self._mark_bad(t)
-        else:
-            self._bad_since_s = None
-            self._bad_for_s = 0.0
+        dt, w, f = step
         self._t_s = t
         obs = self._observer
         if obs is None:
@@ -189,9 +176,7 @@ class ObserverEngine:
             and t - self._t_vel_rx_s > self.cfg.gnss_timeout_s
         ):
             self._enter_coasting()
-        pending = self._pending
-        while pending and pending[0][0] <= t:
-            t_e, fix = pending.popleft()
+        for t_e, fix in self._held.due(t):
             self._correct(fix, t_e)
 
     def _propagate_navigation(self, fpn: float, fpe: float, fpd: float, dt: float) -> None:
@@ -265,10 +250,8 @@ class ObserverEngine:
         if self._observer is None or fix.quality == FixQuality.NONE:
             return
         t_e = self._clock.epoch_time(fix)
-        if self._t_s is None or t_e > self._t_s:
-            self._pending.append((t_e, fix))
-            return
-        self._correct(fix, t_e)
+        if not self._held.hold(t_e, fix, self._t_s):
+            self._correct(fix, t_e)
 
     def _correct(self, fix: GnssFix, t_e: float) -> None:
         """All corrections of one epoch at epoch time ``t_e`` (<= the last IMU time)."""
@@ -311,11 +294,11 @@ class ObserverEngine:
                 int(fix.quality) in self.cfg.learning_fix_qualities
                 and not glitch
                 and (self._heading_aligned or self._at_rest)
-                and not self._imu_upset
+                and not self._imu.upset
             ),
         )
         self._zero_rate_update(t_e, row)
-        self._imu_upset = False
+        self._imu.upset = False
         cog_ref = math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
         yaw_rate = float(c_bn[2] @ w_still)
         self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn)
@@ -360,7 +343,7 @@ class ObserverEngine:
         """At rest, every ``gyro_z_window_s`` the mean body z rate is the residual z-gyro bias
         (heading channel KF): a 20 s stop pins it to ARW / sqrt(20 s) = 0.007 deg/s, where
         course-over-ground heading could not observe it at all."""
-        if not (self._stationary and self.cfg.estimate_biases) or self._imu_upset:
+        if not (self._stationary and self.cfg.estimate_biases) or self._imu.upset:
             self._zero_rate_start = None
             return
         start = self._zero_rate_start
@@ -682,29 +665,12 @@ class ObserverEngine:
         )
         return "reject"
 
-    def _mark_bad(self, t: float) -> None:
-        """An invalid (skipped) or saturated sample: a run of them lasting
-        ``imu_fault_s`` is a FAULT."""
-        if self._bad_since_s is None:
-            self._bad_since_s = t
-        self._bad_for_s = t - self._bad_since_s
-
     # ========================================================================= read-out
 
     def solution(self) -> Solution:
         """The current solution at the time of the last IMU sample."""
-        t = self._t_s if self._t_s is not None else 0.0
         fix = self._last_fix
-        base = Solution(
-            t=t,
-            mode=Mode.INITIALISING,
-            fix_quality=fix.quality if fix is not None else None,
-            num_sats=fix.num_sats if fix is not None else None,
-            hdop=fix.hdop if fix is not None else None,
-            age_s=fix.age_s if fix is not None else None,
-            imu_alarm=self._imu_alarm,
-            imu_ok=self._t_s is not None and self._bad_since_s is None,
-        )
+        base = base_solution(self._t_s, fix, self._imu)
         obs = self._observer
         if obs is None:
             return base
@@ -764,13 +730,13 @@ class ObserverEngine:
 
     def _mode(self, coasting_s: float) -> Mode:
         return navigation_mode(
-            fault=self._bad_for_s >= self.cfg.imu_fault_s,
+            fault=self._imu.fault,
             aligned=self._heading_aligned,
             coasting=coasting_s > 0.0,
-            imu_alarm=self._imu_alarm,
+            imu_alarm=self._imu.alarm,
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
-            imu_gap=self._timing.degraded(),
+            imu_gap=self._imu.timing.degraded(),
             gnss_glitch=self._track.rejecting_since_s is not None,
         )
 
@@ -800,7 +766,7 @@ class ObserverEngine:
         g = GRAVITY_MPS2
         sigma_bg = self._sigma_bg_rps()
         sigma_ba = max(cfg.accel_bias_sigma0_mps2 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2)
-        arw = cfg.gyro_arw_dps_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
+        arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
         return math.sqrt(
             arw**2 * cfg.tau_s / 2.0

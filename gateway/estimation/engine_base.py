@@ -1,0 +1,103 @@
+"""What both engines share around their maths: IMU health, held-back epochs, common fields.
+
+The observer and the EKF differ in how they estimate; they do not differ in how they judge
+the IMU stream, wait for the IMU to cover a GNSS epoch, or report the receiver's fix and the
+IMU's state. One implementation each here, so the two cannot drift apart.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import deque
+from collections.abc import Iterator
+
+from drivers.samples import GnssFix, ImuSample
+from gateway.estimation.solution import ImuTiming, Mode, Solution
+
+#: Epochs ahead of the IMU kept at most (a receiver far ahead of the IMU is a time fault).
+MAX_HELD_EPOCHS = 16
+
+
+class ImuHealth:
+    """The IMU stream judged sample by sample: the step to integrate over (:class:`ImuTiming`),
+    and runs of unusable samples (non-finite numbers or time, a saturated axis) that are a
+    FAULT once they last ``fault_s``. The EA alarm (some DIAG_STAT flag, SPEC 1: also the
+    user alarm thresholds) leaves the data usable: DEGRADED and bias learning frozen, not a
+    FAULT."""
+
+    def __init__(self, fault_s: float) -> None:
+        self.fault_s = fault_s
+        self.timing = ImuTiming()
+        self.alarm = False  # the last sample's EA bit
+        self.upset = False  # an alarm or saturation since the engine last cleared it
+        self.bad_since_s: float | None = None  # start of the current run of unusable samples
+        self._bad_for_s = 0.0
+
+    def accept(self, sample: ImuSample) -> tuple[float, list[float], list[float]] | None:
+        """(dt, w_ib_b, f_ib_b) to integrate, or None for a sample to skip (not finite)."""
+        t = sample.t
+        dt = self.timing.step(sample)
+        w = sample.w_ib_b.tolist()
+        f = sample.f_ib_b.tolist()
+        if not (dt > 0.0 and math.isfinite(w[0] + w[1] + w[2] + f[0] + f[1] + f[2] + t)):
+            self._mark_bad(t)
+            return None
+        self.alarm = sample.alarm
+        self.upset |= sample.alarm or sample.saturated
+        if sample.saturated:
+            self._mark_bad(t)
+        else:
+            self.bad_since_s, self._bad_for_s = None, 0.0
+        return dt, w, f
+
+    @property
+    def fault(self) -> bool:
+        """Unusable samples for ``fault_s`` or longer, up to the last one."""
+        return self._bad_for_s >= self.fault_s
+
+    @property
+    def ok(self) -> bool:
+        """The last sample was usable (STATUS 'IMU ok')."""
+        return self.bad_since_s is None
+
+    def _mark_bad(self, t: float) -> None:
+        if self.bad_since_s is None:
+            self.bad_since_s = t
+        self._bad_for_s = t - self.bad_since_s
+
+
+class HeldEpochs:
+    """GNSS epochs whose time is ahead of the last IMU sample (zero or under-stated receiver
+    latency) wait here until the IMU covers them, so a correction compares quantities of one
+    instant."""
+
+    def __init__(self) -> None:
+        self._epochs: deque[tuple[float, GnssFix]] = deque(maxlen=MAX_HELD_EPOCHS)
+
+    def hold(self, t_e: float, fix: GnssFix, t_imu: float | None) -> bool:
+        """Keep the epoch of time ``t_e`` if the IMU has not reached it; True if kept."""
+        if t_imu is not None and t_e <= t_imu:
+            return False
+        self._epochs.append((t_e, fix))
+        return True
+
+    def due(self, t_imu: float) -> Iterator[tuple[float, GnssFix]]:
+        """(epoch time, fix) of each held epoch the IMU has now covered, oldest first."""
+        epochs = self._epochs
+        while epochs and epochs[0][0] <= t_imu:
+            yield epochs.popleft()
+
+
+def base_solution(t: float | None, fix: GnssFix | None, imu: ImuHealth) -> Solution:
+    """The fields every engine reports the same way: the receiver's last fix and the IMU's
+    state, at the time of the last IMU sample (0 before any)."""
+    return Solution(
+        t=t if t is not None else 0.0,
+        mode=Mode.INITIALISING,
+        fix_quality=fix.quality if fix is not None else None,
+        num_sats=fix.num_sats if fix is not None else None,
+        hdop=fix.hdop if fix is not None else None,
+        age_s=fix.age_s if fix is not None else None,
+        imu_alarm=imu.alarm,
+        imu_ok=t is not None and imu.ok,
+    )
