@@ -70,6 +70,14 @@ def rpy_from_dcm(c_bn: npt.ArrayLike) -> tuple[float, float, float]:
     return roll, pitch, yaw
 
 
+def rpy_from_mat9(c9: Mat9) -> tuple[float, float, float]:
+    """:func:`rpy_from_dcm` of 9 row-major floats (the engines' hot-path form), no numpy."""
+    roll = math.atan2(c9[7], c9[8])
+    pitch = -math.asin(max(-1.0, min(1.0, c9[6])))
+    yaw = math.atan2(c9[3], c9[0]) % (2.0 * math.pi)
+    return roll, pitch, yaw
+
+
 def roll_pitch_from_specific_force(f_b: npt.ArrayLike) -> tuple[float, float]:
     """Roll and pitch (rad) of a platform whose accelerometers read ``f_b`` (3,) at rest.
 

@@ -10,9 +10,10 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterator
+from typing import Any
 
 from drivers.samples import GnssFix, ImuSample
-from gateway.estimation.solution import ImuTiming, Mode, Solution
+from gateway.estimation.solution import ImuTiming
 
 #: Epochs ahead of the IMU kept at most (a receiver far ahead of the IMU is a time fault).
 MAX_HELD_EPOCHS = 16
@@ -74,6 +75,9 @@ class HeldEpochs:
     def __init__(self) -> None:
         self._epochs: deque[tuple[float, GnssFix]] = deque(maxlen=MAX_HELD_EPOCHS)
 
+    def __bool__(self) -> bool:
+        return bool(self._epochs)
+
     def hold(self, t_e: float, fix: GnssFix, t_imu: float | None) -> bool:
         """Keep the epoch of time ``t_e`` if the IMU has not reached it; True if kept."""
         if t_imu is not None and t_e <= t_imu:
@@ -88,16 +92,17 @@ class HeldEpochs:
             yield epochs.popleft()
 
 
-def base_solution(t: float | None, fix: GnssFix | None, imu: ImuHealth) -> Solution:
-    """The fields every engine reports the same way: the receiver's last fix and the IMU's
-    state, at the time of the last IMU sample (0 before any)."""
-    return Solution(
-        t=t if t is not None else 0.0,
-        mode=Mode.INITIALISING,
-        fix_quality=fix.quality if fix is not None else None,
-        num_sats=fix.num_sats if fix is not None else None,
-        hdop=fix.hdop if fix is not None else None,
-        age_s=fix.age_s if fix is not None else None,
-        imu_alarm=imu.alarm,
-        imu_ok=t is not None and imu.ok,
-    )
+def common_fields(t: float | None, fix: GnssFix | None, imu: ImuHealth) -> dict[str, Any]:
+    """The :class:`Solution` fields every engine reports the same way: the receiver's last
+    fix and the IMU's state, at the time of the last IMU sample (0 before any). A dict for
+    ``Solution(**common, ...)``: a solution is built once (50 times a second), not replaced."""
+    common: dict[str, Any] = {
+        "t": t if t is not None else 0.0,
+        "imu_alarm": imu.alarm,
+        "imu_ok": t is not None and imu.ok,
+    }
+    if fix is not None:
+        common.update(
+            fix_quality=fix.quality, num_sats=fix.num_sats, hdop=fix.hdop, age_s=fix.age_s
+        )
+    return common

@@ -29,7 +29,7 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 
 import numpy as np
 import numpy.typing as npt
@@ -42,6 +42,7 @@ from gateway.estimation.attitude import (
     exp_so3,
     roll_pitch_from_specific_force,
     rpy_from_dcm,
+    rpy_from_mat9,
     skew,
     to_mat9,
 )
@@ -64,7 +65,7 @@ from gateway.estimation.ekf.error_state import (
     process_noise_psd,
     transition_matrix,
 )
-from gateway.estimation.engine_base import HeldEpochs, ImuHealth, base_solution
+from gateway.estimation.engine_base import HeldEpochs, ImuHealth, common_fields
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_track import GnssTrack
@@ -167,6 +168,7 @@ class EkfEngine:
         self._clock = EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
+        self._l_imu_b_f = tuple(float(x) for x in self._l_imu_b)
         self._l_imu_ant_b = self._l_ant_b - self._l_imu_b  # antenna relative to the IMU
         self._tuning: EkfTuning | None = None
         self._q_c = np.zeros(N_STATES)
@@ -224,8 +226,9 @@ class EkfEngine:
             self._predict()
             if t - self._t_nhc_s >= self.cfg.nhc_interval_s:
                 self._fuse_nonholonomic(t)
-        for t_e, fix in self._held.due(t):
-            self._fuse_epoch(fix, t_e)
+        if self._held:  # (no generator per sample when none waits)
+            for t_e, fix in self._held.due(t):
+                self._fuse_epoch(fix, t_e)
 
     def _predict(self) -> None:
         """Covariance prediction over the IMU samples since the last one."""
@@ -612,21 +615,23 @@ class EkfEngine:
         if ins is None or self._p is None:
             return None
         c_bn = ins.c_bn
-        w_b = np.array(ins.w_b_lp_rps)
+        wx, wy, wz = ins.w_b_lp_rps
+        lx, ly, lz = self._l_imu_b_f
+        w_x_l = np.array((wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx))  # np.cross
         p_ref = np.array(ins.p_ned_m) - c_bn @ self._l_imu_b
-        v_ref = np.array(ins.v_ned_mps) - c_bn @ np.cross(w_b, self._l_imu_b)
+        v_ref = np.array(ins.v_ned_mps) - c_bn @ w_x_l
         return p_ref, v_ref, c_bn
 
     def solution(self) -> Solution:
         """The current solution at the time of the last IMU sample."""
         fix = self._last_fix
-        base = replace(base_solution(self._t_s, fix, self._imu), is_ekf=True)
+        common = common_fields(self._t_s, fix, self._imu)
         ins = self._ins
         if ins is None:
-            return base
-        c_bn = ins.c_bn
-        roll, pitch, yaw = rpy_from_dcm(c_bn)
-        w_b = np.array(ins.w_b_lp_rps)
+            return Solution(mode=Mode.INITIALISING, is_ekf=True, **common)
+        c9 = ins.c_bn9
+        roll, pitch, yaw = rpy_from_mat9(c9)
+        w_b = ins.w_b_lp_rps
         coasting_s = self._coasting_s()
         mode = self._mode(coasting_s)
         nav = self.reference_state()
@@ -638,13 +643,14 @@ class EkfEngine:
         sig = self.bias_sigma()
         p = self._p
         cfg = self.cfg
-        return replace(
-            base,
+        return Solution(
+            **common,
+            is_ekf=True,
             mode=mode,
             roll_rad=roll,
             pitch_rad=pitch,
             yaw_rad=yaw if p is not None else None,
-            yaw_rate_rps=float(c_bn[2] @ w_b),
+            yaw_rate_rps=c9[6] * w_b[0] + c9[7] * w_b[1] + c9[8] * w_b[2],  # output only
             lat_deg=lat,
             lon_deg=lon,
             alt_m=alt,

@@ -18,7 +18,7 @@ import logging
 import math
 from bisect import bisect_left
 from collections import deque
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Literal
 
 import numpy as np
@@ -27,12 +27,13 @@ from drivers.log_limit import LogLimiter
 from drivers.samples import FixQuality, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, SQRT_SECONDS_PER_HOUR, wrap_pi
 from gateway.estimation.attitude import (
+    Mat9,
     dcm_from_rpy,
     exp_so3,
     roll_pitch_from_specific_force,
-    rpy_from_dcm,
+    rpy_from_mat9,
 )
-from gateway.estimation.engine_base import HeldEpochs, ImuHealth, base_solution
+from gateway.estimation.engine_base import HeldEpochs, ImuHealth, common_fields
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_track import GnssTrack
@@ -176,8 +177,9 @@ class ObserverEngine:
             and t - self._t_vel_rx_s > self.cfg.gnss_timeout_s
         ):
             self._enter_coasting()
-        for t_e, fix in self._held.due(t):
-            self._correct(fix, t_e)
+        if self._held:  # (no generator per sample when none waits)
+            for t_e, fix in self._held.due(t):
+                self._correct(fix, t_e)
 
     def _propagate_navigation(self, fpn: float, fpe: float, fpd: float, dt: float) -> None:
         """Reference-point velocity and position from a = f_p + g; f_p integral for eq. (3).
@@ -670,12 +672,12 @@ class ObserverEngine:
     def solution(self) -> Solution:
         """The current solution at the time of the last IMU sample."""
         fix = self._last_fix
-        base = base_solution(self._t_s, fix, self._imu)
+        common = common_fields(self._t_s, fix, self._imu)
         obs = self._observer
         if obs is None:
-            return base
-        c_bn = obs.c_bp
-        roll, pitch, yaw = rpy_from_dcm(c_bn)
+            return Solution(mode=Mode.INITIALISING, **common)
+        c9 = obs.c_bp9
+        roll, pitch, yaw = rpy_from_mat9(c9)
         coasting_s = self._coasting_s()
         gnss_ok = (
             fix is not None
@@ -689,13 +691,13 @@ class ObserverEngine:
             lat, lon, alt = self._frame.to_lla(*self._p_ned_m)
             vel = (self._v_ned_mps[0], self._v_ned_mps[1], self._v_ned_mps[2])
         k = self.cfg.converged_time_constants
-        return replace(
-            base,
+        return Solution(
+            **common,
             mode=self._mode(coasting_s),
             roll_rad=roll,
             pitch_rad=pitch,
             yaw_rad=yaw if self._heading_aligned else None,
-            yaw_rate_rps=self._yaw_rate_rps(c_bn),
+            yaw_rate_rps=self._yaw_rate_rps(c9),
             lat_deg=lat,
             lon_deg=lon,
             alt_m=alt,
@@ -714,13 +716,25 @@ class ObserverEngine:
             ),
         )
 
-    def _yaw_rate_rps(self, c_bn: np.ndarray) -> float | None:
+    def _yaw_rate_rps(self, c9: Mat9) -> float | None:
         """Rate of turn about the NED vertical, (C w_b)[2], w_b averaged over the last
-        ``OUTPUT_RATE_WINDOW_S`` (a single ADIS16334 sample is 0.5 deg/s noisy)."""
+        ``OUTPUT_RATE_WINDOW_S`` (a single ADIS16334 sample is 0.5 deg/s noisy). Output only
+        (no state depends on it), so plain floats, not numpy."""
         if not self._hist:
             return None
         last = self._hist[-1]
-        return float(c_bn[2] @ self._mean_rate(last[_T] - OUTPUT_RATE_WINDOW_S, last))
+        row0 = self._history_at(last[_T] - OUTPUT_RATE_WINDOW_S)
+        obs = self._observer
+        if row0 is None or last[_T] <= row0[_T]:
+            w = obs.w_b_rps if obs is not None else (0.0, 0.0, 0.0)
+        else:
+            span = last[_T] - row0[_T]
+            w = (
+                (last[_WI_X] - row0[_WI_X]) / span,
+                (last[_WI_Y] - row0[_WI_Y]) / span,
+                (last[_WI_Z] - row0[_WI_Z]) / span,
+            )
+        return c9[6] * w[0] + c9[7] * w[1] + c9[8] * w[2]
 
     def _coasting_s(self) -> float:
         """Time since usable GNSS velocity stopped, 0 while it flows (receive-time clock)."""
