@@ -5,13 +5,21 @@ from __future__ import annotations
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.ekf.ekf_config import EkfConfig
 from gateway.estimation.ekf.ekf_engine import EkfEngine
+from gateway.estimation.epoch_clock import EpochClock
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Estimator
 
 
-def make_engine(config: GatewayConfig) -> Estimator:
-    """The estimator ``config`` selects, tuned by it."""
+def make_engine(config: GatewayConfig, clock: EpochClock | None = None) -> Estimator:
+    """The estimator ``config`` selects, tuned by it; ``clock`` shared if given (the fusion
+    core keeps one across engine restarts: a restart on a loaded host must not forget that
+    the host clock follows UTC and take late epochs for a clock offset)."""
     settings = config.engine_settings()
     if isinstance(settings, EkfConfig):
-        return EkfEngine(settings)
-    return ObserverEngine(settings)
+        return EkfEngine(settings, clock)
+    return ObserverEngine(settings, clock)
+
+
+def epoch_clock(config: GatewayConfig) -> EpochClock:
+    """The epoch clock of ``config``'s GNSS timing."""
+    return EpochClock(config.gnss.epoch_time, config.gnss.receiver_latency_s)

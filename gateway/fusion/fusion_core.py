@@ -38,7 +38,7 @@ import can
 from drivers.samples import GnssFix, ImuAux, ImuCounters, ImuSample
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.solution import Estimator, Mode, Solution
-from gateway.fusion.engines import make_engine
+from gateway.fusion.engines import epoch_clock, make_engine
 from gateway.fusion.output_guard import OutputGuard
 from gateway.isobus.address_claim import AddressClaimer, Name
 from gateway.isobus.j1939 import DEFAULT_SOURCE_ADDRESS, Pgn
@@ -106,6 +106,7 @@ class FusionCore:
         cls, config: GatewayConfig, imu_counters: ImuCounters | None = None
     ) -> FusionCore:
         """Engine, scheduler and claimer as the config says."""
+        clock = epoch_clock(config)  # one for every engine of this core (restarts included)
         name = Name(
             identity_number=config.isobus.identity_number,
             manufacturer_code=config.isobus.manufacturer_code,
@@ -113,8 +114,8 @@ class FusionCore:
             function_instance=config.isobus.function_instance,
         )
         return cls(
-            engine=make_engine(config),
-            make_engine=partial(make_engine, config),
+            engine=make_engine(config, clock),
+            make_engine=partial(make_engine, config, clock),
             scheduler=OutputScheduler(
                 config.output.rates_hz(), OutputEncoder(config.isobus.manufacturer_code)
             ),

@@ -160,12 +160,14 @@ class _History:
 class EkfEngine:
     """Loosely coupled GNSS/INS error-state EKF (ALGORITHMS.md 3) behind the Estimator protocol."""
 
-    def __init__(self, config: EkfConfig | None = None) -> None:
+    def __init__(self, config: EkfConfig | None = None, clock: EpochClock | None = None) -> None:
+        """``clock``: the epoch clock to use (one that outlives the engine keeps what it learnt
+        of the host clock across a restart), else a new one from ``config``."""
         cfg = config if config is not None else EkfConfig()
         self.cfg = cfg
         self.counters = EkfCounters()
         self._log = LogLimiter(log)
-        self._clock = EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
         self._l_imu_b_f = tuple(float(x) for x in self._l_imu_b)

@@ -87,13 +87,17 @@ class ObserverCounters:
 class ObserverEngine:
     """Tereshkov observer engine (ALGORITHMS.md 1, 2, 4) behind the Estimator protocol."""
 
-    def __init__(self, config: ObserverConfig | None = None) -> None:
+    def __init__(
+        self, config: ObserverConfig | None = None, clock: EpochClock | None = None
+    ) -> None:
+        """``clock``: the epoch clock to use (one that outlives the engine keeps what it learnt
+        of the host clock across a restart), else a new one from ``config``."""
         cfg = config if config is not None else ObserverConfig()
         self.cfg = cfg
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
         self._heading = HeadingChannel(cfg)
-        self._clock = EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._observer: TereshkovObserver | None = None
         # tilt alignment
         self._align_sum = [0.0] * 6  # sums of w_b and f_b over the window
