@@ -106,10 +106,10 @@ def test_echo_filter_drops_one_copy_per_frame_sent() -> None:
     for i in range(3000):  # 3 s of output, read behind a backlog: told by arrival time
         echo.sent(frame(i, can_id(Pgn.ATTITUDE, 0x1C, 2)), 103.0 + i * 0.001)
     assert echo.is_echo(frame(0, can_id(Pgn.ATTITUDE, 0x1C, 2)), 103.0005)
-    own = frame(2, can_id(Pgn.ATTITUDE, 0x1C, 2))
-    own.is_rx = False  # the interface says we sent it (virtual, socketcan): ours, kept or not
-    assert echo.is_echo(own, 110.0)
-    assert echo.echoes == 5
+    local = frame(2, can_id(Pgn.ATTITUDE, 0x1C, 2))
+    local.is_rx = False  # socketcan: sent from this host, by another socket (a local tool)
+    assert not echo.is_echo(local, 110.0)  # not ours: we never sent it
+    assert echo.echoes == 4
 
 
 def test_inbox_drops_the_oldest_input_and_counts() -> None:

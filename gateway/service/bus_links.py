@@ -11,8 +11,9 @@ Echo: some interfaces (``udp_multicast``, python-can ``virtual`` and socketcan w
 ``receive_own_messages``, some adapters) deliver our own transmitted frames back to us, and
 with the filter on our address all of them get through. :class:`EchoFilter` remembers every
 frame we sent and drops one received copy per frame sent, so an identical frame from another
-node still gets through; a frame the interface marks as our own (``is_rx`` false) is dropped
-whatever was remembered.
+node still gets through. ``is_rx`` is no echo marker: socketcan clears it for every frame
+sent from this host (MSG_DONTROUTE), so another process's claim on the same interface (a
+tool, a second application, the vcan tests' cansend) would be taken for ours.
 """
 
 from __future__ import annotations
@@ -122,8 +123,7 @@ class EchoFilter:
 
     def is_echo(self, msg: can.Message, t_wall: float) -> bool:
         """True if ``msg``, arrived at ``t_wall`` (frames come in order of arrival), is a copy
-        of a frame we sent in the window before (that copy is then forgotten), or the
-        interface says we sent it."""
+        of a frame we sent in the window before (that copy is then forgotten)."""
         self._forget_before(t_wall - self.window_s)
         frame = (msg.arbitration_id, bytes(msg.data))
         times = self._sent.get(frame)
@@ -131,7 +131,7 @@ class EchoFilter:
             times.popleft()
             if not times:
                 del self._sent[frame]
-        echo = times is not None or not msg.is_rx
+        echo = times is not None
         self.echoes += echo
         return echo
 
