@@ -20,7 +20,13 @@ from drivers.samples import GnssFix, ImuSample
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.solution import Mode, Solution
 from gateway.fusion.fusion_core import FusionCore
-from gateway.isobus.address_claim import CONFLICT_HOLD_S, AddressClaimer, ClaimState, Name
+from gateway.isobus.address_claim import (
+    CONFLICT_HOLD_S,
+    RECLAIM_INTERVAL_S,
+    AddressClaimer,
+    ClaimState,
+    Name,
+)
 from gateway.isobus.j1939 import FrameId, IndustryGroup, Pgn, can_id
 from gateway.isobus.n2k_encode import LoopStatus
 from gateway.isobus.output_scheduler import OutputScheduler
@@ -489,6 +495,15 @@ def test_frames_sent_as_us_by_another_node_make_status_degraded(
             gw.run(gw.core.solution().t - T0_S + 0.5)
     claimer = gw.core.claimer
     assert claimer.spoofed_frames == 3 and claimer.name_conflicts == 0
+    # ISO 11783-5: a violation is answered with our claim from 0x1C, at most once a second
+    # against a flood: violations at 0, 0.5 and 1 s get claims at 0 and 1 s
+    reclaims = [
+        f for f in gw.sent
+        if FrameId.parse(f.arbitration_id).pgn == Pgn.ADDRESS_CLAIM
+        and f.timestamp - T0_S > CONFLICT_AT_S - 0.1
+    ]  # fmt: skip
+    assert [FrameId.parse(f.arbitration_id).source for f in reclaims] == [0x1C] * 2
+    assert reclaims[1].timestamp - reclaims[0].timestamp >= RECLAIM_INTERVAL_S
     [text] = [r.getMessage() for r in caplog.records]
     assert f"PGN {int(pgn)} from our address 0x1C" in text and "DEGRADED" in text
     held_to = CONFLICT_AT_S + 1.0 + CONFLICT_HOLD_S

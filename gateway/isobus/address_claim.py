@@ -67,6 +67,7 @@ DELAY_STEP_S = 0.0006  # random start-up wait: 0-255 steps, 0-153 ms
 _PGN_BYTES = 3  # a requested PGN is 3 bytes, little-endian
 CONFLICT_HOLD_S = 10.0  # conflict() stays true this long after the last NAME conflict or spoof
 CONFLICT_LOG_S = 10.0  # at most one warning per kind of conflict this often
+RECLAIM_INTERVAL_S = 1.0  # an address violation is answered with our claim this often at most
 
 
 class NameFunction(IntEnum):
@@ -144,6 +145,7 @@ class AddressClaimer:
         self._deadline = 0.0
         self._defended_until = -math.inf  # a contender we beat may send until it reads our claim
         self._conflict_at = -math.inf  # time of the last NAME conflict or spoofed frame
+        self._reclaimed_at = -math.inf  # time of the last claim answering an address violation
         self._warned_at: dict[str, float] = {}  # kind of conflict -> time of its last warning
         self.state = ClaimState.IDLE
         self.address: int | None = None  # held or being claimed
@@ -190,16 +192,17 @@ class AddressClaimer:
         frame_id = FrameId.parse(msg.arbitration_id)
         if frame_id.pgn == Pgn.ADDRESS_CLAIM and len(msg.data) >= 8:
             return self._on_claim(frame_id.source, int.from_bytes(msg.data[:8], "little"), now)
+        out: list[can.Message] = []
         if frame_id.source == self.address and self.claimed and now >= self._defended_until:
-            self._on_spoofed(frame_id.pgn, now)
+            out = self._on_spoofed(frame_id.pgn, now)
         if (
             frame_id.pgn == Pgn.ISO_REQUEST
             and len(msg.data) >= _PGN_BYTES
             and int.from_bytes(msg.data[:_PGN_BYTES], "little") == Pgn.ADDRESS_CLAIM
             and frame_id.destination in (GLOBAL_ADDRESS, self.address)
         ):
-            return self._answer_request(now)
-        return []
+            return out + self._answer_request(now)
+        return out
 
     def _on_claim(self, source: int, name: int, now: float) -> list[can.Message]:
         if name == self._name:
@@ -229,8 +232,10 @@ class AddressClaimer:
             self.name_conflicts,
         )  # fmt: skip
 
-    def _on_spoofed(self, pgn: int, now: float) -> None:
-        """A frame from our address that we did not send: count, warn, mark the conflict."""
+    def _on_spoofed(self, pgn: int, now: float) -> list[can.Message]:
+        """A frame from our address that we did not send: count, warn, mark the conflict, and
+        claim the address again (ISO 11783-5: an address violation is answered with an
+        address claim), at most once per :data:`RECLAIM_INTERVAL_S` against a flood."""
         self.spoofed_frames += 1
         self._mark_conflict(
             "spoof", now,
@@ -239,6 +244,10 @@ class AddressClaimer:
             "until %g s after the last one (%d in all)",
             pgn, _address_text(self.address), CONFLICT_HOLD_S, self.spoofed_frames,
         )  # fmt: skip
+        if now - self._reclaimed_at < RECLAIM_INTERVAL_S or self.address is None:
+            return []
+        self._reclaimed_at = now
+        return [self._claim_message(self.address, now)]
 
     def _mark_conflict(self, kind: str, now: float, text: str, *args: object) -> None:
         """Start the hold of conflict(); warn at most once per CONFLICT_LOG_S per kind."""
