@@ -7,6 +7,15 @@ is there. On input the flag is accepted. The reader yields the same ``can.Messag
 python-can's ``CanutilsLogReader`` for well-formed input, but skips a malformed line (counting
 it and logging it, at a limited rate, with file, line number, text and what was expected)
 instead of ending the whole read. Replay and the IMU driver's log source both use this parser.
+
+Speed (issue 14): both directions have a fast path for the common shape, a data frame of at most
+8 bytes with a 3- or 8-digit id, e.g. the line above. :func:`_parse_fast` accepts only lines the
+careful parser :func:`_parse_careful` accepts, and gives the identical message; it returns
+``None`` for anything else (remote, error and CAN FD frames, numeric channels, every malformed
+line), which the careful parser then reads, rejects or explains. The file location of a line
+("name:number") is only built for a line the fast path leaves. Likewise the writer formats the
+common frame inline, with the expressions of :func:`format_candump_line`, and leaves the rest
+to it. tests/test_canlog.py checks both against the careful paths on generated lines and frames.
 """
 
 from __future__ import annotations
@@ -14,6 +23,7 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Iterable, Iterator
+from contextlib import nullcontext
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TextIO
@@ -36,6 +46,14 @@ LINE_FORMAT = "'(<seconds>) <channel> <hex id>#<hex data>' with an optional trai
 
 #: Malformed lines logged individually per file before the reader goes quiet (then a summary).
 MAX_LOGGED_BAD_LINES = 5
+
+# The fast paths' constants.
+_DIRECTION = {"R": True, "r": True, "T": False, "t": False}
+_INF = math.inf
+_NO_STAMP = object()
+_new_object = object.__new__
+_Message = can.Message
+_fromhex = bytearray.fromhex
 
 
 def format_candump_line(msg: can.Message, channel: str | int | None = None) -> str:
@@ -61,25 +79,62 @@ def format_candump_line(msg: can.Message, channel: str | int | None = None) -> s
     return f"({msg.timestamp:f}) {ch} {can_id}#{fd}{msg.data.hex().upper()}"
 
 
+def _channel_text(channel: object) -> str | None:
+    """What :func:`format_candump_line` writes for a message without a channel, given the
+    writer's ``channel``; ``None`` (no fast path) unless that is a plain string or int."""
+    ch = channel if channel is not None else "can0"
+    if type(ch) is int:
+        return f"can{ch}"
+    if type(ch) is str:
+        return f"can{ch}" if ch.isdigit() else ch
+    return None
+
+
 class CandumpWriter(Closing):
     """Writes messages as candump ``-L`` lines (without R/T); a context manager."""
 
     def __init__(self, path: str | Path, channel: str = "can0") -> None:
         self.path = Path(path)
         self.channel = channel
+        self._default = _channel_text(channel)
+        self._stamp: tuple[object, str] = (_NO_STAMP, "")  # last timestamp written fast, text
         self._file: TextIO = self.path.open("w", encoding="ascii", newline="\n")
 
     def write(self, msg: can.Message) -> None:
         """Append one frame."""
-        self._file.write(format_candump_line(msg, self.channel) + "\n")
+        self.write_all((msg,))
 
     def write_all(self, messages: Iterable[can.Message]) -> int:
-        """Append every frame of ``messages``; returns how many."""
+        """Append every frame of ``messages``; returns how many.
+
+        The common frame (data, not FD, extended id, channel a name or none) is written here
+        with the expressions :func:`format_candump_line` uses, so the text is the same. The
+        frames of one solution share one timestamp object, whose text is made once.
+        """
         n = 0
         write = self._file.write
         channel = self.channel
+        default = self._default
+        last_ts, stamp = self._stamp
         for msg in messages:
-            write(format_candump_line(msg, channel) + "\n")
+            ch = msg.channel
+            if ch is None:
+                ch = default
+            elif type(ch) is not str or ch.isdigit():
+                ch = None
+            if (
+                ch is not None
+                and msg.is_extended_id
+                and not (msg.is_error_frame or msg.is_remote_frame or msg.is_fd)
+            ):
+                ts = msg.timestamp
+                if ts is not last_ts:  # the same object has the same text
+                    stamp = f"{ts:f}"
+                    last_ts = ts
+                    self._stamp = (ts, stamp)
+                write(f"({stamp}) {ch} {msg.arbitration_id:08X}#{msg.data.hex().upper()}\n")
+            else:
+                write(format_candump_line(msg, channel) + "\n")
             n += 1
         return n
 
@@ -108,6 +163,68 @@ def parse_candump_line(line: str, where: str = "<line>") -> can.Message | None:
     Raises :class:`InputError` (naming ``where``, the text and the expected form) when the line
     is not a well-formed frame.
     """
+    msg = _parse_fast(line)
+    return msg if msg is not None else _parse_careful(line, where)
+
+
+def _parse_fast(line: str) -> can.Message | None:
+    """The common well-formed line as :func:`_parse_careful` reads it, else ``None``.
+
+    Accepts three fields (or four, the last R, r, T or t), the same the careful parser splits:
+    a finite timestamp >= 0 in parentheses, a channel that is not a number, and a data frame of
+    at most 8 bytes with a 3-digit id up to 0x7FF or an 8-digit id up to 29 bits. Each field
+    goes through the same conversion as there (float, int base 16, bytearray.fromhex), so the
+    values are the same; any ValueError leaves the line to the careful parser.
+    """
+    fields = line.split()
+    n = len(fields)
+    if n == 3:
+        stamp, channel, frame = fields
+        is_rx = True
+    elif n == 4:
+        stamp, channel, frame, flag = fields
+        direction = _DIRECTION.get(flag)
+        if direction is None:
+            return None
+        is_rx = direction
+    else:
+        return None
+    if stamp[0] != "(" or stamp[-1] != ")" or channel.isdigit():
+        return None
+    id_text, sep, data = frame.partition("#")
+    if not sep:
+        return None
+    try:
+        timestamp = float(stamp[1:-1])
+        can_id = int(id_text, 16)
+        payload = _fromhex(data)  # '#' (CAN FD) or R (remote) is no hex digit: ValueError
+    except ValueError:
+        return None
+    id_len = len(id_text)
+    if (
+        not ((id_len == 8 and 0 <= can_id <= 0x1FFFFFFF) or (id_len == 3 and can_id <= 0x7FF))
+        or len(payload) > 8
+        or not 0.0 <= timestamp < _INF
+    ):
+        return None
+    msg = _new_object(_Message)  # the fields can.Message(...) sets, without its keywords
+    msg.timestamp = timestamp
+    msg.arbitration_id = can_id
+    msg.is_extended_id = id_len == 8
+    msg.is_remote_frame = False
+    msg.is_error_frame = False
+    msg.channel = channel
+    msg.is_fd = False
+    msg.is_rx = is_rx
+    msg.bitrate_switch = False
+    msg.error_state_indicator = False
+    msg.data = payload
+    msg.dlc = len(payload)
+    return msg
+
+
+def _parse_careful(line: str, where: str) -> can.Message | None:
+    """:func:`parse_candump_line` for every line: each check in turn, a reason for a bad line."""
     text = line.strip()
     if not text:
         return None
@@ -195,32 +312,35 @@ class CandumpReader:
         return str(getattr(self.source, "name", "<stream>"))
 
     def __iter__(self) -> Iterator[can.Message]:
-        if isinstance(self.source, str | Path):
-            with Path(self.source).open(encoding="ascii", errors="replace") as stream:
-                yield from self._read(stream)
-        else:
-            yield from self._read(self.source)
-
-    def _read(self, stream: TextIO) -> Iterator[can.Message]:
-        name = self.name
-        for number, line in enumerate(stream, start=1):
-            try:
-                msg = parse_candump_line(line, f"{name}:{number}")
-            except InputError as exc:
-                self.bad_lines += 1
-                if self.bad_lines <= MAX_LOGGED_BAD_LINES:
-                    log.warning("skipped malformed candump line: %s", exc)
-                continue
-            if msg is not None:
+        source = self.source
+        with (
+            Path(source).open(encoding="ascii", errors="replace")
+            if isinstance(source, str | Path)
+            else nullcontext(source)  # a stream is the caller's to close
+        ) as stream:
+            name = self.name
+            fast = _parse_fast
+            for number, line in enumerate(stream, start=1):
+                msg = fast(line)
+                if msg is None:  # not the common shape: the careful parser, with the place
+                    try:
+                        msg = _parse_careful(line, f"{name}:{number}")
+                    except InputError as exc:
+                        self.bad_lines += 1
+                        if self.bad_lines <= MAX_LOGGED_BAD_LINES:
+                            log.warning("skipped malformed candump line: %s", exc)
+                        continue
+                    if msg is None:
+                        continue
                 self.frames += 1
                 yield msg
-        if self.bad_lines > MAX_LOGGED_BAD_LINES:
-            log.warning(
-                "%s: %d malformed lines skipped in all (%d not shown)",
-                name,
-                self.bad_lines,
-                self.bad_lines - MAX_LOGGED_BAD_LINES,
-            )
+            if self.bad_lines > MAX_LOGGED_BAD_LINES:
+                log.warning(
+                    "%s: %d malformed lines skipped in all (%d not shown)",
+                    name,
+                    self.bad_lines,
+                    self.bad_lines - MAX_LOGGED_BAD_LINES,
+                )
 
 
 def read_candump(source: str | Path | TextIO) -> CandumpReader:
