@@ -3,9 +3,11 @@
 Layers, each usable alone:
 
 - :class:`ImuDecoder`, pure (no I/O): fed ``can.Message`` objects in arrival order, it decodes
-  IMU_GYRO / IMU_ACCEL / IMU_AUX through the DBC (one generic path), pairs gyro and accel by
-  SEQ, converts to SI in the body frame, rebuilds sample times from SEQ and DEC, and counts
-  everything that went wrong (:class:`ImuCounters`), warning at a limited rate.
+  IMU_GYRO / IMU_ACCEL / IMU_AUX through the DBC (the two per-sample frames with unpackers
+  compiled from it, :meth:`dbc.fast_decode.LittleEndianDecoder.compile`: a few us a sample in
+  all), pairs gyro and accel by SEQ, converts to SI in the body frame, rebuilds sample times
+  from SEQ and DEC, and counts everything that went wrong (:class:`ImuCounters`), warning at
+  a limited rate.
 - :func:`read_bus`: asyncio source over any python-can bus (receive filters set to our ids).
 - :func:`read_log`: the same decoder over a candump ``-L`` log (``drivers.logs.candump``).
 
@@ -53,26 +55,28 @@ wrap later).
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
-from collections.abc import AsyncIterator, Iterator
+import types
+from collections.abc import AsyncIterator, Callable, Iterator
 from dataclasses import dataclass, field
 from enum import Enum, IntFlag
+from functools import cache
 from pathlib import Path
 from typing import Any, TextIO
 
 import can
 import numpy as np
-import numpy.typing as npt
 from can.typechecking import CanFilter
 
 import dbc
-from dbc.fast_decode import LittleEndianDecoder
+from dbc.fast_decode import AllOf, AnyOf, LittleEndianDecoder, Lookup, Output, Raw
 from drivers.errors import ErrorPolicy
 from drivers.frame_reader import FrameReader
 from drivers.log_limit import BadInput
 from drivers.logs.candump import CandumpReader, read_candump
-from drivers.samples import ImuAux, ImuCounters, ImuSample
+from drivers.samples import ImuAux, ImuCounters, ImuSample, Vec3
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 
 log = logging.getLogger(__name__)
@@ -174,10 +178,13 @@ class WarningKind(Enum):
     SEQ = "SEQ discontinuity"
 
 
-_TRIADS = {ImuFrame.GYRO: "GYRO", ImuFrame.ACCEL: "ACCL"}
+_GYRO, _ACCEL = ImuFrame.GYRO, ImuFrame.ACCEL  # read per frame: no Enum attribute lookups
+_TRIADS = {_GYRO: "GYRO", _ACCEL: "ACCL"}
 #: Frames a half waits for its partner, at least and at most (module docstring, Pairing).
 _PAIR_MIN_FRAMES = 2
 _PAIR_MAX_FRAMES = 256
+#: Key of a waiting half in ImuDecoder._pending: its SEQ, plus this for an accel half.
+_ACCEL_KEY = 256
 
 
 @dataclass(frozen=True)
@@ -206,17 +213,100 @@ class _Triad:
         )
 
 
-@dataclass(frozen=True, slots=True)
-class _Half:
-    """One decoded IMU_GYRO or IMU_ACCEL frame, SI, IMU axes."""
+#: The fields of a decoded IMU_GYRO or IMU_ACCEL frame, by index (DEC only in IMU_GYRO): the
+#: axis words in SI and IMU axes, each its DBC value times si_per_unit (the product a float64
+#: array times that float gives); some EA bit set; every ND bit set; some axis at or beyond
+#: the triad's low or high (saturated); SEQ; the RESERVED bits; DEC.
+_X, _Y, _Z, _ALARM, _NEW_DATA, _SATURATED, _SEQ, _RESERVED, _DEC = range(9)
 
-    t_arrival: float
-    frame_no: int  # counters.frames when it arrived (a burst squeezes arrival times)
-    v_imu: npt.NDArray[np.float64]
-    dec: int | None  # only the gyro frame carries DEC
-    alarm: bool
-    new_data: bool
-    saturated: bool
+#: A decoded IMU_GYRO or IMU_ACCEL frame: (arrival time, counters.frames when it arrived (a burst
+#: squeezes arrival times), its fields). Tuples all through: a frozen dataclass cost 1 us.
+_Half = tuple[float, int, tuple[Any, ...]]
+_Unpacker = Callable[[bytes | bytearray], tuple[Any, ...]]
+
+
+@cache
+def _half_unpacker(frame: ImuFrame) -> tuple[_Unpacker, int]:
+    """The unpacker of IMU_GYRO or IMU_ACCEL into its fields (``_X`` ...), compiled from the DBC
+    once per process, and the value of its RESERVED bits (all ones, SPEC 1)."""
+    definition = dbc.load(dbc.IMU_DBC).get_message_by_name(frame.value)
+    decoder = LittleEndianDecoder(definition)
+    tri = _Triad.from_dbc(definition)
+    tables = {name: decoder.physical_table(name) for name in tri.out}
+    si: dict[tuple[float | int, ...], tuple[float, ...]] = {}  # axes of one layout share tables
+    saturated: dict[tuple[float | int, ...], tuple[bool, ...]] = {}
+    for values in tables.values():
+        if values not in si:
+            si[values] = tuple(v * tri.si_per_unit for v in values)
+            saturated[values] = tuple(v <= tri.low or v >= tri.high for v in values)
+            # What makes skipping the identity mounting exact (ImuDecoder.__init__).
+            if not all(math.isfinite(v) and (v or math.copysign(1.0, v) > 0) for v in si[values]):
+                raise ValueError(f"{frame.value}: an axis value non-finite or -0.0")
+    outputs: dict[int, Output] = {
+        _X: Lookup(tri.out[0], si[tables[tri.out[0]]]),
+        _Y: Lookup(tri.out[1], si[tables[tri.out[1]]]),
+        _Z: Lookup(tri.out[2], si[tables[tri.out[2]]]),
+        _ALARM: AnyOf(tuple(Raw(name) for name in tri.ea)),
+        _NEW_DATA: AllOf(tuple(Raw(name) for name in tri.nd)),
+        _SATURATED: AnyOf(tuple(Lookup(name, saturated[tables[name]]) for name in tri.out)),
+        _SEQ: Raw("SEQ"),
+        _RESERVED: Raw("RESERVED"),
+        **({_DEC: Raw("DEC")} if frame is _GYRO else {}),
+    }
+    assert list(outputs) == list(range(len(outputs)))
+    reserved = definition.get_signal_by_name("RESERVED")
+    return decoder.compile(list(outputs.values())), (1 << reserved.length) - 1
+
+
+_SampleMaker = Callable[[float, float, Vec3, Vec3, int, bool, bool], ImuSample]
+
+
+def _sample_maker() -> _SampleMaker:
+    """``ImuSample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated)`` at half the cost: a frozen
+    dataclass's ``__init__`` sets each field through ``object.__setattr__`` (~0.9 us a sample,
+    as much as decoding both frames); this sets the same slots directly, so the sample is the
+    same. If ImuSample ever needs more than its slots set (other fields, a ``__post_init__``,
+    no slots), the class itself is called."""
+    names = ("t", "dt", "w_ib_b", "f_ib_b", "seq", "alarm", "saturated")
+    fields = dataclasses.fields(ImuSample)
+    slots = [vars(ImuSample).get(n) for n in names]
+    if (
+        sorted(f.name for f in fields) != sorted(names)
+        or not all(f.init for f in fields)
+        or hasattr(ImuSample, "__post_init__")
+        or not all(isinstance(slot, types.MemberDescriptorType) for slot in slots)
+    ):
+
+        def construct(
+            t: float, dt: float, w: Vec3, f: Vec3, seq: int, alarm: bool, saturated: bool
+        ) -> ImuSample:
+            return ImuSample(
+                t=t, dt=dt, w_ib_b=w, f_ib_b=f, seq=seq, alarm=alarm, saturated=saturated
+            )
+
+        return construct
+    new, cls = object.__new__, ImuSample
+    set_t, set_dt, set_w, set_f, set_seq, set_alarm, set_saturated = (
+        slot.__set__ for slot in slots if isinstance(slot, types.MemberDescriptorType)
+    )
+
+    def make(
+        t: float, dt: float, w: Vec3, f: Vec3, seq: int, alarm: bool, saturated: bool
+    ) -> ImuSample:
+        sample = new(cls)
+        set_t(sample, t)
+        set_dt(sample, dt)
+        set_w(sample, w)
+        set_f(sample, f)
+        set_seq(sample, seq)
+        set_alarm(sample, alarm)
+        set_saturated(sample, saturated)
+        return sample
+
+    return make
+
+
+_new_sample = _sample_maker()
 
 
 class ImuDecoder:
@@ -226,20 +316,30 @@ class ImuDecoder:
         self.config = config or ImuCanConfig()
         self.counters = ImuCounters()
         self.c_b_imu = np.array(self.config.c_b_imu, dtype=float)
+        # v_b = C v_imu, through numpy as ever. With C the identity it is skipped: each entry
+        # of the product is 1.0 v_i plus terms 0.0 v_j, which are +/-0.0, and in any order or
+        # with fused multiply-adds, v_i plus +/-0.0 is v_i, bit for bit, since v_i is finite
+        # and, when zero, +0.0 (the unpacker's tables are checked for that).
+        self._mounted = not np.array_equal(self.c_b_imu, np.eye(3))
+        self._latency = self.config.bridge_latency_s
         db = dbc.load(dbc.IMU_DBC)
-        self._frames = {
-            i & PGN_SA_MASK: (f, LittleEndianDecoder(db.get_message_by_name(f.value)), i)
-            for f, i in self.config.ids.by_frame().items()
-        }
-        self._triads = {f: _Triad.from_dbc(db.get_message_by_name(f.value)) for f in _TRIADS}
-        diag = [
-            s
-            for s in db.get_message_by_name(ImuFrame.AUX.value).signals
-            if s.name.startswith("DIAG_")
-        ]
+        aux = db.get_message_by_name(ImuFrame.AUX.value)
+        self._aux_decoder = LittleEndianDecoder(aux)
+        # masked id -> (frame, length, the configured id, unpacker (None: IMU_AUX), RESERVED
+        # value, what its SEQ is offset by in self._pending)
+        self._frames: dict[int, tuple[ImuFrame, int, int, _Unpacker | None, int, int]] = {}
+        for f, i in self.config.ids.by_frame().items():
+            unpack, reserved = _half_unpacker(f) if f in _TRIADS else (None, 0)
+            length = db.get_message_by_name(f.value).length
+            key = _ACCEL_KEY if f is _ACCEL else 0
+            self._frames[i & PGN_SA_MASK] = (f, length, i, unpack, reserved, key)
+        diag = [s for s in aux.signals if s.name.startswith("DIAG_")]
         base = min(s.start for s in diag)
         self._diag_bits = {s.name: s.start - base for s in diag}
-        self._pending: dict[tuple[ImuFrame, int], _Half] = {}
+        # Halves waiting for their partner by SEQ (+ _ACCEL_KEY for accel), and a lower bound
+        # of the frame count from which one may be stale: the oldest's frame_no + 3 at most.
+        self._pending: dict[int, _Half] = {}
+        self._stale_from = 0
         self._bad = BadInput(log, self.config.on_error, self.config.warn_interval_s)
         self._dec: int | None = None
         self._dt = 0.0
@@ -269,30 +369,42 @@ class ImuDecoder:
         if entry is None or msg.is_error_frame:
             self.counters.ignored += 1
             return []
-        frame, definition, frame_id = entry
-        self.counters.frames += 1
+        frame, length, frame_id, unpack, expected_reserved, key = entry
+        frames = self.counters.frames = self.counters.frames + 1
         t = float(msg.timestamp)
-        self._evict_stale_halves(t)
-        length = definition.length
-        if not msg.is_extended_id or msg.is_remote_frame or len(msg.data) != length:
+        pending = self._pending
+        if pending and frames >= self._stale_from:
+            self._evict_stale_halves(t)
+        data = msg.data
+        if not msg.is_extended_id or msg.is_remote_frame or len(data) != length:
             what = (
                 f"{frame.value} frame id 0x{msg.arbitration_id:X} "
                 f"(extended {msg.is_extended_id}, remote {msg.is_remote_frame}, "
-                f"{len(msg.data)} bytes)"
+                f"{len(data)} bytes)"
             )
             return self._malformed(t, what, f"an extended data frame of {length} bytes")
-        values = definition.decode(bytes(msg.data))
-        if frame is ImuFrame.AUX:
-            return [self._aux(t, values)]
-        reserved = int(values["RESERVED"])
-        expected_reserved = 0xF if frame is ImuFrame.GYRO else 0xFF
-        if reserved != expected_reserved:
+        if unpack is None:
+            return [self._aux(t, self._aux_decoder.decode(bytes(data)))]
+        fields = unpack(data)
+        if fields[_RESERVED] != expected_reserved:
             return self._malformed(
                 t,
-                f"{frame.value} id 0x{frame_id:X} reserved bits 0x{reserved:X}",
+                f"{frame.value} id 0x{frame_id:X} reserved bits 0x{fields[_RESERVED]:X}",
                 f"0x{expected_reserved:X} (reserved bits sent as 1)",
             )
-        return self._half(frame, t, values)
+        seq = fields[_SEQ]
+        key += seq
+        partner = pending.pop(key ^ _ACCEL_KEY, None)
+        if partner is None:
+            if pending.pop(key, None) is not None:
+                self._unpaired(t, frame, seq, "a second one of the same SEQ")
+            if not pending:  # the oldest now; a later half leaves the bound valid
+                self._stale_from = frames + _PAIR_MIN_FRAMES + 1
+            pending[key] = (t, frames, fields)
+            return []
+        if key & _ACCEL_KEY:
+            return self._sample(seq, partner, (t, frames, fields))
+        return self._sample(seq, (t, frames, fields), partner)
 
     def finish(self) -> None:
         """End of input: any half still waiting for its partner is unpaired."""
@@ -303,36 +415,15 @@ class ImuDecoder:
         """Current nominal sample period (0 before the first sample)."""
         return self._dt
 
-    def _half(self, frame: ImuFrame, t: float, values: dict[str, Any]) -> list[ImuSample | ImuAux]:
-        tri = self._triads[frame]
-        raw = [values[n] for n in tri.out]
-        half = _Half(
-            t_arrival=t,
-            frame_no=self.counters.frames,
-            v_imu=np.array(raw, dtype=float) * tri.si_per_unit,
-            dec=int(values["DEC"]) if frame is ImuFrame.GYRO else None,
-            alarm=any(values[n] for n in tri.ea),
-            new_data=all(values[n] for n in tri.nd),
-            saturated=any(v <= tri.low or v >= tri.high for v in raw),
-        )
-        seq = int(values["SEQ"])
-        other = ImuFrame.ACCEL if frame is ImuFrame.GYRO else ImuFrame.GYRO
-        partner = self._pending.pop((other, seq), None)
-        if partner is None:
-            if self._pending.pop((frame, seq), None) is not None:
-                self._unpaired(t, frame, seq, "a second one of the same SEQ")
-            self._pending[(frame, seq)] = half
-            return []
-        gyro, accel = (half, partner) if frame is ImuFrame.GYRO else (partner, half)
-        return self._sample(seq, gyro, accel)
-
     def _sample(self, seq: int, gyro: _Half, accel: _Half) -> list[ImuSample | ImuAux]:
-        assert gyro.dec is not None
-        a = min(gyro.t_arrival, accel.t_arrival)
+        t_gyro, _, g = gyro
+        t_accel, _, f = accel
+        dec = g[_DEC]
+        a = t_accel if t_accel < t_gyro else t_gyro  # min(t_gyro, t_accel), which is slower
         c = self.counters
-        if gyro.dec != self._dec:
+        if dec != self._dec:
             start = self._dec is None
-            self._dec, self._dt = gyro.dec, sample_period_s(gyro.dec)
+            self._dec, self._dt = dec, sample_period_s(dec)
             self._half_wrap = 128 * self._dt
             # the anchor follows the earliest arrivals, so a real sample is never much earlier
             # than its clock says: two periods and 2 ms of jitter
@@ -340,9 +431,7 @@ class ImuDecoder:
             n = 0 if start else self._n_last + 1
             self._n_first = n
             self._missing.clear()
-            self._anchor(
-                a, n, a - n * self._dt, seq, None if start else f"DEC changed to {gyro.dec}"
-            )
+            self._anchor(a, n, a - n * self._dt, seq, None if start else f"DEC changed to {dec}")
         else:
             step = self._unwrap(seq, a)
             if step is None:
@@ -351,8 +440,8 @@ class ImuDecoder:
         self._n_last, self._seq_last, self._a_last = n, self._seq_taken, a
         if len(self._missing) > 512:
             self._missing = {i for i in self._missing if i > n - 256}
-        alarm = gyro.alarm or accel.alarm
-        saturated = gyro.saturated or accel.saturated
+        alarm = g[_ALARM] or f[_ALARM]
+        saturated = g[_SATURATED] or f[_SATURATED]
         c.samples += 1
         if alarm:
             c.alarms += 1
@@ -370,7 +459,7 @@ class ImuDecoder:
                 f"IMU axis at the end of its register range "
                 f"in SEQ {seq}; expected |value| below the 14-bit limit",
             )
-        if not (gyro.new_data and accel.new_data):
+        if not (g[_NEW_DATA] and f[_NEW_DATA]):
             c.no_new_data += 1
             self._warn(
                 WarningKind.NO_NEW_DATA,
@@ -378,17 +467,12 @@ class ImuDecoder:
                 f"ND bit clear in SEQ {seq}: register read "
                 "before new data; expected ND set on every sample",
             )
-        return [
-            ImuSample(
-                t=self._offset + n * self._dt - self.config.bridge_latency_s,
-                dt=self._dt,
-                w_ib_b=self.c_b_imu @ gyro.v_imu,
-                f_ib_b=self.c_b_imu @ accel.v_imu,
-                seq=seq,
-                alarm=alarm,
-                saturated=saturated,
-            )
-        ]
+        w_ib_b, f_ib_b = np.array(g[_X : _Z + 1]), np.array(f[_X : _Z + 1])
+        if self._mounted:
+            w_ib_b, f_ib_b = self.c_b_imu @ w_ib_b, self.c_b_imu @ f_ib_b
+        dt = self._dt
+        t = self._offset + n * dt - self._latency
+        return [_new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated)]
 
     def _unwrap(self, seq: int, a: float) -> int | None:
         """The index of sample ``seq`` arriving at ``a`` (None if late); counts SEQ gaps lost."""
@@ -581,18 +665,20 @@ class ImuDecoder:
         frames = self.counters.frames
         for key in [
             k
-            for k, h in self._pending.items()
+            for k, (t_arrival, frame_no, _) in self._pending.items()
             if final
-            or (h.t_arrival < limit and frames - h.frame_no > _PAIR_MIN_FRAMES)
-            or frames - h.frame_no > _PAIR_MAX_FRAMES
+            or (t_arrival < limit and frames - frame_no > _PAIR_MIN_FRAMES)
+            or frames - frame_no > _PAIR_MAX_FRAMES
         ]:
             del self._pending[key]
             self._unpaired(
                 t,
-                key[0],
-                key[1],
+                _ACCEL if key & _ACCEL_KEY else _GYRO,
+                key & 0xFF,
                 f"no partner within {self.config.pair_timeout_s} s or {_PAIR_MAX_FRAMES} frames",
             )
+        if self._pending:
+            self._stale_from = min(h[1] for h in self._pending.values()) + _PAIR_MIN_FRAMES + 1
 
     def _unpaired(self, t: float, frame: ImuFrame, seq: int, why: str) -> None:
         self.counters.unpaired += 1
