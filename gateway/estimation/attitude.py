@@ -25,6 +25,14 @@ def skew(v: npt.ArrayLike) -> Array:
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
+def cross3(a: npt.ArrayLike, b: npt.ArrayLike) -> Array:
+    """a x b of two 3-vectors: np.cross's own formula and operation order (the same bits),
+    without its axis handling, which costs 15 us a call."""
+    a0, a1, a2 = (float(x) for x in np.ravel(a))
+    b0, b1, b2 = (float(x) for x in np.ravel(b))
+    return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
+
+
 def exp_so3(phi: npt.ArrayLike) -> Array:
     """Rotation matrix exp([phi]x), shape (3, 3), by Rodrigues' formula (exact)."""
     phi = np.asarray(phi, dtype=float)

@@ -10,6 +10,8 @@ from __future__ import annotations
 import numpy as np
 import numpy.typing as npt
 
+from gateway.estimation.attitude import cross3
+
 Array = npt.NDArray[np.float64]
 
 
@@ -22,7 +24,7 @@ def lever_arm_velocity_ned(
     c_bn: npt.ArrayLike, w_b_rps: npt.ArrayLike, lever_arm_b: npt.ArrayLike
 ) -> Array:
     """C_b^n (w_b x l), shape (3,): velocity of a body point relative to the reference, m/s."""
-    return np.asarray(c_bn, dtype=float) @ np.cross(
+    return np.asarray(c_bn, dtype=float) @ cross3(
         np.asarray(w_b_rps, dtype=float), np.asarray(lever_arm_b, dtype=float)
     )
 

@@ -38,6 +38,7 @@ from drivers.log_limit import LogLimiter
 from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 from gateway.estimation.attitude import (
+    cross3,
     dcm_from_rpy,
     exp_so3,
     roll_pitch_from_specific_force,
@@ -518,7 +519,7 @@ class EkfEngine:
         vel = self._gnss_velocity(fix)
         v_ne = vel[0] if vel is not None else np.zeros(2)
         w_e = self._lever_rate(t_e)[0]
-        v_imu = np.array([v_ne[0], v_ne[1], 0.0]) - c_e @ np.cross(w_e, self._l_imu_ant_b)
+        v_imu = np.array([v_ne[0], v_ne[1], 0.0]) - c_e @ cross3(w_e, self._l_imu_ant_b)
         age_s = self._t_s - t_e
         p_now = p_imu + v_imu * age_s
         dp = p_now - np.array(ins.p_ned_m)
@@ -567,7 +568,7 @@ class EkfEngine:
         ins = self._ins
         assert ins is not None
         w_b = np.array(ins.w_b_lp_rps)
-        v_ref_b = ins.c_bn.T @ np.array(ins.v_ned_mps) - np.cross(w_b, self._l_imu_b)
+        v_ref_b = ins.c_bn.T @ np.array(ins.v_ned_mps) - cross3(w_b, self._l_imu_b)
         cfg = self.cfg
         self._stationary = (
             float(np.linalg.norm(v_ref_b)) < cfg.stationary_speed_mps
@@ -606,7 +607,7 @@ class EkfEngine:
         j[0:3, POS] = np.eye(3)
         j[0:3, ATT] = skew(c_bn @ self._l_imu_b)
         j[3:6, VEL] = np.eye(3)
-        j[3:6, ATT] = skew(c_bn @ np.cross(w_b, self._l_imu_b))
+        j[3:6, ATT] = skew(c_bn @ cross3(w_b, self._l_imu_b))
         j[3:6, BG] = -c_bn @ skew(self._l_imu_b)
         j[6:9, ATT] = np.eye(3)
         return np.asarray(j @ p @ j.T)

@@ -38,6 +38,7 @@ import numpy.typing as npt
 from drivers.units import GRAVITY_MPS2, wrap_pi
 from gateway.estimation.attitude import (
     Mat9,
+    cross3,
     dcm_mul,
     exp_so3,
     exp_so3_2nd,
@@ -329,7 +330,7 @@ def fuse_velocity(
     dv_ant = dv - [C (w x l)]x phi + C [l]x dbg (the rate error is -dbg). ``v_ant_meas_ne_mps``
     shape (2,).
     """
-    v_lever = c_bn @ np.cross(w_b_rps, l_ant_b)
+    v_lever = c_bn @ cross3(w_b_rps, l_ant_b)
     h = np.zeros((3, N_STATES))
     h[:, VEL] = _I3
     h[:, ATT] = -skew(v_lever)
@@ -348,7 +349,7 @@ def fuse_nonholonomic(
     d(v_ref_b) = C^T dv + C^T [v]x phi + [l]x dbg.
     """
     c_nb = c_bn.T
-    v_ref_b = c_nb @ v_ned_mps + np.cross(w_b_rps, l_ref_b)
+    v_ref_b = c_nb @ v_ned_mps + cross3(w_b_rps, l_ref_b)
     h = np.zeros((3, N_STATES))
     h[:, VEL] = c_nb
     h[:, ATT] = c_nb @ skew(v_ned_mps)
