@@ -56,6 +56,10 @@ IMU_SILENT_S = 0.2
 RESTART_GAP_S = 1.0
 
 
+#: What an input that sends nothing returns (no generator per IMU sample).
+_NOTHING: Iterator[can.Message] = iter(())
+
+
 @dataclass(frozen=True, slots=True)
 class BusFrame:
     """An ISOBUS frame from a recording (another node's address claim or request), at the
@@ -173,11 +177,11 @@ class FusionCore:
         self._saturated = False
         self._last_sample = sample
         self.engine.imu(sample)
-        out: Iterable[can.Message] = self.claimer.poll(sample.t)
-        if self.claimer.claimed and self.scheduler.is_due(sample.t):
-            sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
-            out = chain(out, self.scheduler.frames(sent, self.loop_status(sample.t)))
-        return self._counted(out)
+        polled = self.claimer.poll(sample.t)
+        if not (self.claimer.claimed and self.scheduler.is_due(sample.t)):
+            return self._counted(polled) if polled else _NOTHING  # most samples send nothing
+        sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
+        return self._counted(chain(polled, self.scheduler.frames(sent, self.loop_status(sample.t))))
 
     def on_bus_frame(self, msg: can.Message, now: float) -> Iterator[can.Message]:
         """A frame received from the ISOBUS (address claims, requests, frames from our
