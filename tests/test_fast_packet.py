@@ -1,6 +1,8 @@
 """Fast-packet fragmentation, checked against canboat's own reassembler."""
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from nmea2000 import _canboat
 
 from gateway.isobus.fast_packet import MAX_PAYLOAD_BYTES, FastPacketFragmenter, frame_count
@@ -45,3 +47,35 @@ def test_payload_too_long_or_empty_is_refused() -> None:
         FastPacketFragmenter().fragment(PGN, 0x1C, bytes(224))
     with pytest.raises(ValueError, match="0 bytes"):
         FastPacketFragmenter().fragment(PGN, 0x1C, b"")
+
+
+def reference(payload: bytes, seq: int) -> list[bytes]:
+    """The frames as the module docstring states them, built byte by byte."""
+    frames = [bytes([seq << 5 | 0, len(payload)]) + payload[:6]]
+    for n, start in enumerate(range(6, len(payload), 7), start=1):
+        frames.append(bytes([seq << 5 | n]) + payload[start : start + 7])
+    return [frame + bytes([0xFF] * (8 - len(frame))) for frame in frames]
+
+
+@settings(max_examples=300, deadline=None)
+@given(
+    st.lists(
+        st.tuples(st.sampled_from([0x1C, 0x80]), st.binary(min_size=1, max_size=223)),
+        min_size=1,
+        max_size=20,
+    )
+)
+def test_frames_are_the_documented_layout_with_counters_per_source(
+    packets: list[tuple[int, bytes]],
+) -> None:
+    frag, seqs = FastPacketFragmenter(), {0x1C: 0, 0x80: 0}
+    reassembler = _canboat.Reassembler()
+    for source, payload in packets:
+        frames = frag.fragment(PGN, source, payload)
+        assert frames == reference(payload, seqs[source])
+        assert all(type(f) is bytes and len(f) == 8 for f in frames)
+        assert len(frames) == frame_count(len(payload))
+        seqs[source] = (seqs[source] + 1) % 8
+        if len(payload) > 8:  # a packet canboat reassembles (shorter ones fit one frame)
+            results = [reassembler.push(PGN, f, source) for f in frames]
+            assert results[-1] == payload

@@ -5,14 +5,17 @@ import math
 import can
 import numpy as np
 import pytest
-from hypothesis import given
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from nmea2000 import NMEA2000Decoder, backend
 
+import dbc
 from drivers.samples import FixQuality
 from gateway.estimation.solution import Convergence, Mode, Solution
+from gateway.isobus.frame_codec import RESERVED_PREFIX
 from gateway.isobus.j1939 import Pgn
 from gateway.isobus.n2k_encode import GNSS_METHOD_OF_FIX, LAYOUTS, LoopStatus, OutputEncoder
+from tests.test_output_dbc import expected_raw
 
 T = 1_700_000_000.1234  # 2023-11-14 22:13:20.1234 UTC
 FULL = Solution(
@@ -238,3 +241,108 @@ def test_frames_use_the_loop_source_address_and_solution_time() -> None:
 def test_manufacturer_code_must_fit_11_bits() -> None:
     with pytest.raises(ValueError, match="2048"):
         OutputEncoder(manufacturer_code=2048)
+
+
+# OutputEncoder (compiled packers, prepared ids, issue 14) against the way it built frames
+# before: the builder's values, the policy's raw values (tests/test_output_dbc.py), cantools'
+# encode of the DBC message, the fast-packet split as fast_packet.py's docstring states it,
+# and one can.Message per 8 bytes.
+
+DB = dbc.load(dbc.OUTPUT_DBC)
+
+
+def reference_payload(
+    pgn: Pgn, solution: Solution, loop: LoopStatus, sid: int, manufacturer_code: int = 2046
+) -> bytes:
+    layout = LAYOUTS[pgn]
+    message = DB.get_message_by_name(layout.message)
+    values = layout.build(solution, loop, sid)
+    if layout.proprietary:
+        values |= {"MANUFACTURER_CODE": manufacturer_code, "INDUSTRY_CODE": 2}
+    raw = {
+        s.name: (1 << s.length) - 1
+        if s.name.startswith(RESERVED_PREFIX)
+        else expected_raw(s, values[s.name])
+        for s in message.signals
+    }
+    return bytes(message.encode(raw, scaling=False, strict=False))
+
+
+def reference_fast_packet(payload: bytes, seq: int) -> list[bytes]:
+    frames = [bytes([seq << 5, len(payload)]) + payload[:6]]
+    for index, start in enumerate(range(6, len(payload), 7), start=1):
+        frames.append(bytes([seq << 5 | index]) + payload[start : start + 7])
+    return [frame.ljust(8, b"\xff") for frame in frames]
+
+
+def maybe(values: st.SearchStrategy[float]) -> st.SearchStrategy[float | None]:
+    return st.one_of(st.none(), values, st.sampled_from([math.nan, math.inf, -math.inf]))
+
+
+def axes() -> st.SearchStrategy[np.ndarray | None]:
+    axis = st.one_of(st.floats(-0.1, 0.1), st.floats(-1e3, 1e3), st.floats())
+    return st.one_of(st.none(), st.lists(axis, min_size=3, max_size=3).map(np.array))
+
+
+solutions = st.builds(
+    Solution,
+    t=st.one_of(st.floats(0, 4e9), st.sampled_from([T, 0.0, 1_700_000_000.0])),
+    mode=st.sampled_from(Mode),
+    roll_rad=maybe(st.floats(-4, 4)),
+    pitch_rad=maybe(st.floats(-1e6, 1e6)),
+    yaw_rad=maybe(st.one_of(st.floats(-10, 10), st.floats(-1e9, 1e9))),
+    yaw_rate_rps=maybe(st.floats(-100, 100)),
+    lat_deg=maybe(st.floats(-95, 95)),
+    lon_deg=maybe(st.floats(-185, 185)),
+    alt_m=maybe(st.floats(-2e6, 2e6)),
+    vel_ned_mps=st.one_of(
+        st.none(), st.tuples(st.floats(-700, 700), st.floats(-700, 700), st.floats(-9, 9))
+    ),
+    bias_g_rps=axes(),
+    bias_a_mps2=axes(),
+    sigma_tilt_rad=maybe(st.floats(0, 0.1)),
+    fix_quality=st.one_of(st.none(), st.sampled_from(FixQuality)),
+    num_sats=st.one_of(st.none(), st.integers(-1, 300)),
+    hdop=maybe(st.floats(-400, 400)),
+    age_s=maybe(st.floats(-1, 700)),
+    gnss_ok=st.booleans(),
+    imu_ok=st.booleans(),
+    stationary=st.booleans(),
+    is_ekf=st.booleans(),
+    convergence=st.builds(Convergence, *[st.booleans()] * 4),
+)
+loops = st.builds(
+    LoopStatus, st.sampled_from([0x1C, 0x80, 0xF7]), st.booleans(), st.integers(-5, 1000)
+)
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(
+    st.lists(st.tuples(solutions, loops, st.integers(0, 252)), min_size=1, max_size=6),
+    st.integers(0, 2047),
+)
+@np.errstate(over="ignore", invalid="ignore")
+def test_frames_equal_the_reference_encoding(
+    instants: list[tuple[Solution, LoopStatus, int]], manufacturer_code: int
+) -> None:
+    encoder = OutputEncoder(manufacturer_code)
+    seqs: dict[tuple[Pgn, int], int] = {}
+    for solution, loop, sid in instants:
+        for pgn in LAYOUTS:
+            payload = reference_payload(pgn, solution, loop, sid, manufacturer_code)
+            assert encoder.payload(pgn, solution, loop, sid) == payload
+            if LAYOUTS[pgn].fast_packet:
+                seq = seqs.get((pgn, loop.source_address), 0)
+                seqs[pgn, loop.source_address] = (seq + 1) % 8
+                chunks = reference_fast_packet(payload, seq)
+            else:
+                chunks = [payload]
+            priority = DB.get_message_by_name(LAYOUTS[pgn].message).frame_id >> 26 & 7
+            frames = encoder.frames(pgn, solution, loop, sid)
+            assert [bytes(f.data) for f in frames] == chunks
+            for f in frames:
+                assert f.arbitration_id == priority << 26 | pgn << 8 | loop.source_address
+                assert (f.timestamp, f.is_extended_id, f.dlc) == (solution.t, True, 8)
+                assert isinstance(f.data, bytearray)
+                assert not (f.is_remote_frame or f.is_error_frame or f.is_fd)
+                assert (f.channel, f.is_rx) == (None, True)  # python-can's defaults, as before

@@ -1,13 +1,27 @@
 """The output DBC describes SPEC 4, and ``cantools decode`` reads a candump of our output."""
 
+import math
 import subprocess
 import sys
+from collections.abc import Mapping
 from pathlib import Path
 
+import cantools
+import numpy as np
 import pytest
+from cantools.database.can import Message, Signal
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 import dbc
 from gateway.estimation.solution import Mode, Solution
+from gateway.isobus.frame_codec import (
+    NOT_AVAILABLE,
+    OUT_OF_RANGE,
+    RESERVED_PREFIX,
+    EncodeError,
+    FrameCodec,
+)
 from gateway.isobus.j1939 import FrameId, Pgn
 from gateway.isobus.n2k_encode import LAYOUTS, LoopStatus, OutputEncoder
 from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, OutputScheduler
@@ -117,3 +131,177 @@ def test_cantools_decode_reads_a_candump_log_of_the_output(tmp_path: Path) -> No
     assert "MODE: NAVIGATING" in by_name["NAVGW_STATUS"]
     assert "MANUFACTURER_CODE: 2046" in by_name["NAVGW_GYRO_BIAS"]
     assert not [line for line in out if "Unknown" in line or "error" in line.lower()]
+
+
+# The packers compiled from the DBC (frame_codec.py, issue 14) against cantools' own encode
+# and decode of the same DBC. The expected raw value of each field is the policy of
+# frame_codec's docstring, written out here independently of the packers: None and NaN are
+# NOT_AVAILABLE; a scaled value that is not finite, or rounds (half to even) outside the
+# range [min|max], is OUT_OF_RANGE, or NOT_AVAILABLE for a field without that code; a field
+# with neither cannot carry it (EncodeError). Reserved fields are all ones.
+
+#: Every message the gateway encodes through FrameCodec.
+ENCODED = sorted({layout.message for layout in LAYOUTS.values()} | {"ADDRESS_CLAIM"})
+
+
+def raw_limits(signal: Signal) -> tuple[int, int]:
+    """The raw range of ``[min|max]`` (the bits' range where the DBC gives none)."""
+    bits = (-(1 << (signal.length - 1)), (1 << (signal.length - 1)) - 1)
+    if not signal.is_signed:
+        bits = (0, (1 << signal.length) - 1)
+    lo = bits[0] if signal.minimum is None else signal.minimum
+    hi = bits[1] if signal.maximum is None else signal.maximum
+    scale, offset = float(signal.scale), float(signal.offset)
+    return math.ceil((lo - offset) / scale - 1e-9), math.floor((hi - offset) / scale + 1e-9)
+
+
+def special(signal: Signal, name: str) -> int | None:
+    return next((int(raw) for raw, label in (signal.choices or {}).items() if label == name), None)
+
+
+def expected_raw(signal: Signal, value: object) -> int:
+    """The raw value the policy sends for ``value`` (raises EncodeError if it cannot)."""
+    not_available, out_of_range = special(signal, NOT_AVAILABLE), special(signal, OUT_OF_RANGE)
+    lo, hi = raw_limits(signal)
+    if value is None or (isinstance(value, float) and math.isnan(value)):
+        candidates = [not_available]
+    else:
+        scaled = (value - float(signal.offset)) / float(signal.scale)  # type: ignore[operator]
+        if math.isfinite(scaled) and lo <= round(scaled) <= hi:
+            return round(scaled)
+        candidates = [out_of_range, not_available]
+    for raw in candidates:
+        if raw is not None:
+            return raw
+    raise EncodeError(f"signal {signal.name} cannot carry {value!r} and has no special value")
+
+
+def boundary_values(signal: Signal) -> list[float]:
+    """Values at the range's ends and where rounding changes, a float step either side."""
+    lo, hi = raw_limits(signal)
+    scale, offset = float(signal.scale), float(signal.offset)
+    out = []
+    for raw in (lo, hi, lo - 1, hi + 1, 0):
+        for edge in (raw - 0.5, raw, raw + 0.5):
+            x = edge * scale + offset
+            out += [x, math.nextafter(x, -math.inf), math.nextafter(x, math.inf)]
+    return out
+
+
+def physical_values(signal: Signal) -> st.SearchStrategy[object]:
+    lo, hi = raw_limits(signal)
+    scale, offset = float(signal.scale), float(signal.offset)
+    low, high = (lo - 2) * scale + offset, (hi + 2) * scale + offset
+    wide = 4 * max(abs(low), abs(high), 1.0)
+    return st.one_of(
+        st.none(),
+        st.sampled_from([math.nan, -math.nan, math.inf, -math.inf, 0.0, -0.0]),
+        st.floats(min_value=low, max_value=high),  # in range and a little beyond
+        st.floats(min_value=-wide, max_value=wide),  # far beyond
+        st.floats(),  # anything a float can be, NaN and infinities included
+        st.sampled_from(boundary_values(signal)),
+        st.integers(min_value=lo - 3, max_value=hi + 3).map(lambda raw: raw * scale + offset),
+        st.integers(min_value=math.floor(low) - 3, max_value=math.ceil(high) + 3),
+        st.booleans(),
+        st.floats(min_value=low, max_value=high).map(np.float64),  # numpy scalars, as engines
+        st.floats(allow_nan=True, width=32).map(np.float32),  # hand them (not float: NaN is OOR)
+    )
+
+
+@st.composite
+def message_and_values(draw: st.DrawFn) -> tuple[Message, dict[str, object]]:
+    message = DB.get_message_by_name(draw(st.sampled_from(ENCODED)))
+    values = {
+        s.name: draw(physical_values(s))
+        for s in message.signals
+        if not s.name.startswith(RESERVED_PREFIX)
+    }
+    return message, values
+
+
+CODECS = {name: FrameCodec(DB.get_message_by_name(name)) for name in ENCODED}
+
+
+def assert_packs_as_cantools(message: Message, values: Mapping[str, object]) -> None:
+    """The codec's bytes are cantools' encoding of the policy's raw values, and cantools'
+    decode reads every field back; or both the policy and the codec raise the same error."""
+    try:
+        raw = {
+            s.name: (1 << s.length) - 1
+            if s.name.startswith(RESERVED_PREFIX)
+            else expected_raw(s, values[s.name])
+            for s in message.signals
+        }
+    except EncodeError as error:  # the policy cannot send it: the codec raises the same
+        with pytest.raises(EncodeError) as raised:
+            CODECS[message.name].encode(values)  # type: ignore[arg-type]
+        assert str(raised.value) == str(error)
+        return
+    data = CODECS[message.name].encode(values)  # type: ignore[arg-type]
+    assert data == message.encode(raw, scaling=False, strict=False), values
+    assert len(data) == message.length
+    decoded = message.decode(data, decode_choices=False, scaling=False)
+    assert isinstance(decoded, dict)
+    for s in message.signals:
+        assert decoded[s.name] == raw[s.name], (s.name, values.get(s.name))
+
+
+@settings(max_examples=600, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(message_and_values())
+@np.errstate(over="ignore", invalid="ignore")  # float32 values beyond float32 once scaled
+def test_compiled_packers_equal_cantools_field_by_field(
+    case: tuple[Message, dict[str, object]],
+) -> None:
+    assert_packs_as_cantools(*case)
+
+
+@pytest.mark.parametrize("name", ENCODED)
+def test_compiled_packers_at_every_boundary(name: str) -> None:
+    """Each field at and around its range's ends and rounding points, the others in range."""
+    message = DB.get_message_by_name(name)
+    fields = [s for s in message.signals if not s.name.startswith(RESERVED_PREFIX)]
+    for signal in fields:
+        for x in [*boundary_values(signal), None, math.nan, math.inf, -math.inf]:
+            values = {s.name: x if s is signal else raw_limits(s)[0] * s.scale for s in fields}
+            assert_packs_as_cantools(message, values)
+
+
+def test_packer_errors_are_the_codecs_errors() -> None:
+    codec = CODECS["NAVGW_STATUS"]
+    with pytest.raises(EncodeError, match=r"no value for \['IMU_OK', 'MODE'\]"):
+        codec.encode({n: 0 for n in codec.signal_names - {"MODE", "IMU_OK"}})
+    with pytest.raises(EncodeError, match="IMU_OK cannot carry None"):
+        codec.encode({n: None if n == "IMU_OK" else 0 for n in codec.signal_names})
+    with pytest.raises(EncodeError, match="MODE cannot carry 300"):  # no special value: raise
+        codec.encode({n: 300 if n == "MODE" else 0 for n in codec.signal_names})
+    text: dict[str, object] = {n: "1" if n == "MODE" else 0 for n in codec.signal_names}
+    with pytest.raises(TypeError):
+        codec.encode(text)  # type: ignore[arg-type]
+    values = {n: 0 for n in codec.signal_names} | {"NOT_A_SIGNAL": 5}  # extra names: ignored
+    assert codec.encode(values) == codec.encode({n: 0 for n in codec.signal_names})
+
+
+BIG_ENDIAN_DBC = """VERSION ""
+BU_: NAVGW
+BO_ 2566857500 TEST: 4 NAVGW
+ SG_ SPEED : 7|16@0+ (0.01,0) [0|655.32] "m/s" Vector__XXX
+ SG_ RESERVED : 23|8@0+ (1,0) [255|255] "" Vector__XXX
+ SG_ HEADING : 31|8@0+ (1,0) [0|252] "" Vector__XXX
+VAL_ 2566857500 SPEED 65535 "NOT_AVAILABLE" 65534 "OUT_OF_RANGE" ;
+VAL_ 2566857500 HEADING 255 "NOT_AVAILABLE" 254 "OUT_OF_RANGE" ;
+"""
+
+
+def test_every_encoded_message_has_a_packer_and_others_keep_cantools() -> None:
+    assert all(CODECS[name].source is not None for name in ENCODED)
+    db = cantools.database.load_string(BIG_ENDIAN_DBC)
+    assert isinstance(db, cantools.database.can.Database)
+    message = db.get_message_by_name("TEST")
+    codec = FrameCodec(message)
+    assert codec.source is None  # big-endian: cantools packs, as before
+    for speed, heading in [(12.34, 7), (None, None), (700.0, 300), (math.nan, 252)]:
+        values = {"SPEED": speed, "HEADING": heading}
+        raw = {"RESERVED": 255} | {
+            n: expected_raw(message.get_signal_by_name(n), v) for n, v in values.items()
+        }
+        assert codec.encode(values) == message.encode(raw, scaling=False, strict=False)

@@ -1,9 +1,13 @@
 """Output scheduler: rates on a time grid, shared SID, no burst after a gap; bus load."""
 
+import math
 from collections import Counter
+from collections.abc import Collection
 
 import can
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from gateway.estimation.solution import Mode, Solution
 from gateway.isobus.bus_load import bus_load, frame_bits, frames_per_second
@@ -146,3 +150,114 @@ def test_a_pgn_alone_first_leaves_the_others_due() -> None:
     assert scheduler.is_due(10.001)
     later = list(scheduler.frames(Solution(t=10.001, mode=Mode.NAVIGATING), LOOP))
     assert Pgn.ATTITUDE in {FrameId.parse(f.arbitration_id).pgn for f in later}
+
+
+class ReferenceScheduler:
+    """The grid rule of output_scheduler.py, computed PGN by PGN on every call, as the
+    scheduler did before issue 14: the slot of ``t`` is ``floor(t * rate + 1e-6)``; a PGN
+    is due when its slot is past the last one sent; ``is_due`` compares with the earliest
+    next slot's time ``(last + 1 - 1e-6) / rate``."""
+
+    def __init__(self, rates_hz: dict[Pgn, float]) -> None:
+        rates = {**DEFAULT_RATES_HZ, **rates_hz}
+        self.rates = {pgn: rate for pgn, rate in rates.items() if rate > 0}
+        self.last: dict[Pgn, int] = {}
+        self.next_due = -math.inf
+
+    def due(self, t: float, only: Collection[Pgn] | None = None) -> list[Pgn]:
+        pgns = []
+        for pgn, rate in self.rates.items():
+            if only is not None and pgn not in only:
+                continue
+            slot = math.floor(t * rate + 1e-6)
+            if pgn not in self.last or slot > self.last[pgn]:
+                self.last[pgn] = slot
+                pgns.append(pgn)
+        self.next_due = min(
+            (
+                (self.last[p] + 1 - 1e-6) / r if p in self.last else -math.inf
+                for p, r in self.rates.items()
+            ),
+            default=math.inf,
+        )
+        return pgns
+
+    def is_due(self, t: float) -> bool:
+        return t >= self.next_due
+
+
+rates_hz = st.dictionaries(
+    st.sampled_from(list(DEFAULT_RATES_HZ)),
+    st.one_of(st.sampled_from([0, 0.0, 1, 1.0, 3.3, 10.0, 20, 50.0, 100.0]), st.floats(0, 100)),
+    max_size=9,
+)
+
+
+@st.composite
+def times(draw: st.DrawFn) -> list[float]:
+    """Solution times: IMU steps, pauses, steps back, repeats, and grid points of the usual
+    rates exactly, a float step either side, and a tolerance before."""
+    t = draw(st.one_of(st.floats(0, 4e9), st.sampled_from([0.0, 10.0, T0])))
+    steps = [1 / IMU_RATE_HZ, 0.02, 0.1, 1.0, 2.5, 0.0, 1e-9, -1 / IMU_RATE_HZ]
+    out = []
+    for step in draw(st.lists(st.one_of(st.sampled_from(steps), st.floats(-1, 3)), max_size=200)):
+        t += step
+        out.append(t)
+    for k in draw(st.lists(st.integers(0, 10**4), max_size=10)):
+        for rate in (50.0, 10.0, 1.0):
+            g = (math.floor(t * rate) + k) / rate
+            out += [g, math.nextafter(g, -math.inf), math.nextafter(g, math.inf), g - 1e-6 / rate]
+    return sorted(out) if draw(st.booleans()) else out
+
+
+only_pgns = st.one_of(
+    st.none(),
+    st.just((Pgn.NAVGW_STATUS,)),
+    st.sets(st.sampled_from(list(DEFAULT_RATES_HZ))).map(tuple),
+)
+
+
+@settings(max_examples=250, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(rates_hz, times(), st.data())
+def test_due_and_is_due_equal_the_reference(
+    rates: dict[Pgn, float], ts: list[float], data: st.DataObject
+) -> None:
+    scheduler, reference = OutputScheduler(rates), ReferenceScheduler(rates)
+    for t in ts:
+        only = data.draw(only_pgns) if data.draw(st.integers(0, 4)) == 0 else None
+        assert scheduler.is_due(t) == reference.is_due(t)
+        assert scheduler.due(t, only) == reference.due(t, only), (t, only)
+
+
+@pytest.mark.parametrize("t", [math.nan, math.inf, -math.inf, -1e308, 1e308, 5e306])
+@pytest.mark.parametrize("sent_before", [False, True])
+@pytest.mark.parametrize("rates", [{}, {Pgn.ATTITUDE: 1.0, Pgn.NAVGW_STATUS: 100.0}])
+def test_due_at_odd_times_raises_or_answers_as_the_reference(
+    t: float, sent_before: bool, rates: dict[Pgn, float]
+) -> None:
+    """Where t * rate overflows for some rates and not others (1 Hz first, 50 Hz next),
+    the reference marks the PGNs before the one that raises: so must the scheduler."""
+    scheduler, reference = OutputScheduler(rates), ReferenceScheduler(rates)
+    if sent_before:
+        assert scheduler.due(T0) == reference.due(T0)
+    for at, only in [(t, (Pgn.NAVGW_STATUS,)), (t, None), (T0 + 1, None), (T0 + 2, None)]:
+        try:
+            expected: object = reference.due(at, only)
+        except (ValueError, OverflowError) as error:
+            with pytest.raises(type(error)):
+                scheduler.due(at, only)
+        else:
+            assert scheduler.due(at, only) == expected
+        assert scheduler.is_due(T0 + 3) == reference.is_due(T0 + 3)
+
+
+def test_frames_not_due_is_empty_and_keeps_the_sid() -> None:
+    scheduler = OutputScheduler()
+    first = list(scheduler.frames(Solution(t=T0, mode=Mode.NAVIGATING), LOOP))
+    for k in range(1, 4):  # 4.9 ms apart: nothing due before T0 + 20 ms
+        assert (
+            list(scheduler.frames(Solution(t=T0 + k / IMU_RATE_HZ, mode=Mode.NAVIGATING), LOOP))
+            == []
+        )
+    later = list(scheduler.frames(Solution(t=T0 + 0.02, mode=Mode.NAVIGATING), LOOP))
+    assert first[0].data[0] == 0 and later[0].data[0] == 1  # the SID advanced once

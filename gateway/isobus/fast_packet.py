@@ -11,6 +11,9 @@ FIRST_FRAME_BYTES = 6
 NEXT_FRAME_BYTES = 7
 MAX_PAYLOAD_BYTES = FIRST_FRAME_BYTES + 31 * NEXT_FRAME_BYTES  # 5-bit frame counter: 223
 PAD = 0xFF
+_PADDING = bytes([PAD]) * NEXT_FRAME_BYTES  # enough for any last frame
+#: The first byte of frame ``n`` (1-31) of sequence ``seq``: ``_HEADER[seq][n]``.
+_HEADER = tuple(tuple(bytes([seq << 5 | n]) for n in range(32)) for seq in range(8))
 
 
 def frame_count(payload_length: int) -> int:
@@ -35,9 +38,13 @@ class FastPacketFragmenter:
         key = (pgn, source)
         seq = self._seq.get(key, 0)
         self._seq[key] = (seq + 1) & 0x7
-        frames = [bytes([seq << 5, len(payload)]) + payload[:FIRST_FRAME_BYTES]]
-        for index, start in enumerate(
-            range(FIRST_FRAME_BYTES, len(payload), NEXT_FRAME_BYTES), start=1
-        ):
-            frames.append(bytes([seq << 5 | index]) + payload[start : start + NEXT_FRAME_BYTES])
-        return [frame.ljust(8, bytes([PAD])) for frame in frames]
+        padded = payload + _PADDING  # every slice below is then 8 bytes with its header
+        header = _HEADER[seq]
+        frames = [bytes((seq << 5, len(payload))) + padded[:FIRST_FRAME_BYTES]]
+        frames += [
+            header[index] + padded[start : start + NEXT_FRAME_BYTES]
+            for index, start in enumerate(
+                range(FIRST_FRAME_BYTES, len(payload), NEXT_FRAME_BYTES), start=1
+            )
+        ]
+        return frames

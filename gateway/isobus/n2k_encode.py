@@ -222,8 +222,16 @@ LAYOUTS: Mapping[Pgn, Layout] = {
 }
 
 
+#: The frames of one PGN for one instant: ``(solution, loop, sid) -> frames``.
+Framer = Callable[[Solution, LoopStatus, int], list[can.Message]]
+
+
 class OutputEncoder:
-    """Builds the frames of one PGN for one instant; owns the fast-packet counters."""
+    """Builds the frames of one PGN for one instant; owns the fast-packet counters.
+
+    Each PGN is prepared once (:meth:`framer`): its builder, its packer compiled from the DBC
+    (:class:`FrameCodec`), its priority, and its 29-bit id per source address, so that an
+    instant costs the builder, the packer and ``can.Message``."""
 
     def __init__(
         self,
@@ -242,28 +250,59 @@ class OutputEncoder:
             "INDUSTRY_CODE": IndustryGroup.AGRICULTURE,
         }
         self._fragmenter = FastPacketFragmenter()
+        self._framers = {pgn: self._prepare(pgn) for pgn in LAYOUTS}
 
     def payload(self, pgn: Pgn, solution: Solution, loop: LoopStatus, sid: int) -> bytes:
         """The PGN's payload bytes (129029 reassembled, not yet fragmented)."""
-        layout = LAYOUTS[pgn]
-        values = layout.build(solution, loop, sid)
-        if layout.proprietary:
+        values = LAYOUTS[pgn].build(solution, loop, sid)
+        if LAYOUTS[pgn].proprietary:
             values.update(self._header)
-        return self._codecs[pgn].encode(values)
+        return self._codecs[pgn].packer(values)
 
     def frames(self, pgn: Pgn, solution: Solution, loop: LoopStatus, sid: int) -> list[can.Message]:
         """The frames to send for ``pgn``, stamped with the solution time."""
-        data = self.payload(pgn, solution, loop, sid)
-        priority = (self._codecs[pgn].message.frame_id >> 26) & 0x7
-        arbitration_id = can_id(pgn, loop.source_address, priority)
-        chunks = (
-            self._fragmenter.fragment(pgn, loop.source_address, data)
-            if LAYOUTS[pgn].fast_packet
-            else [data]
-        )
-        return [
-            can.Message(
-                timestamp=solution.t, arbitration_id=arbitration_id, is_extended_id=True, data=chunk
-            )
-            for chunk in chunks
-        ]
+        return self._framers[pgn](solution, loop, sid)
+
+    def framer(self, pgn: Pgn) -> Framer:
+        """``frames`` for one PGN, without looking the PGN up (for the scheduler)."""
+        return self._framers[pgn]
+
+    def _prepare(self, pgn: Pgn) -> Framer:
+        layout, codec = LAYOUTS[pgn], self._codecs[pgn]
+        build, pack, fragment = layout.build, codec.packer, self._fragmenter.fragment
+        header = self._header if layout.proprietary else None
+        priority = (codec.message.frame_id >> 26) & 0x7
+        ids: dict[int, int] = {}  # source address: 29-bit id
+        message = can.Message
+
+        def frame_id(source: int) -> int:
+            found = ids.get(source)
+            if found is None:
+                found = ids[source] = can_id(pgn, source, priority)
+            return found
+
+        # can.Message's first parameters, in its order: timestamp, arbitration_id,
+        # is_extended_id, is_remote_frame, is_error_frame, channel, dlc (None: the data's
+        # length), data. Positional, because keywords cost a fifth more per frame.
+        def single(solution: Solution, loop: LoopStatus, sid: int) -> list[can.Message]:
+            values = build(solution, loop, sid)
+            if header is not None:
+                values.update(header)
+            data = pack(values)
+            arbitration_id = ids.get(loop.source_address) or frame_id(loop.source_address)
+            return [message(solution.t, arbitration_id, True, False, False, None, None, data)]
+
+        def fast_packet(solution: Solution, loop: LoopStatus, sid: int) -> list[can.Message]:
+            values = build(solution, loop, sid)
+            if header is not None:
+                values.update(header)
+            data = pack(values)
+            source = loop.source_address
+            arbitration_id = ids.get(source) or frame_id(source)
+            t = solution.t
+            return [
+                message(t, arbitration_id, True, False, False, None, None, chunk)
+                for chunk in fragment(pgn, source, data)
+            ]
+
+        return fast_packet if layout.fast_packet else single
