@@ -261,3 +261,23 @@ def test_a_restart_on_a_loaded_host_keeps_the_epoch_clock(tmp_path: Path, engine
         truth = state_at(MOTION, motion_time(m.t)).p_ned_m[0]
         worst = max(worst, float(np.hypot(*(ned[:2] - truth[:2]))))
     assert worst < 0.5, worst
+
+
+def test_a_new_mode_goes_out_with_the_first_frame_sent_in_it(tmp_path: Path) -> None:
+    """A 60 ms hole in the IMU stream, between two 10 Hz STATUS slots (DEGRADED for 5 s, no
+    restart). The first attitude after it leaves in the same instant as a NAVGW_STATUS
+    saying DEGRADED: the status keeps its 10 Hz otherwise, so without this a consumer heard
+    of the new mode up to 0.1 s late (the issue's demo under load: a pitch 4 deg off 0.27 s
+    after the last STATUS, which said FAULT)."""
+    hole = (70.02, 70.08)
+    imu = [
+        s
+        for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+        if not hole[0] <= motion_time(s.t) < hole[1]
+    ]
+    log = tmp_path / "out.log"
+    run(log, Engine.OBSERVER, imu, gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07))
+    frames = [(motion_time(f.timestamp), f) for f in read_candump(log)]
+    first = next(t for t, f in frames if t >= hole[1] and f.arbitration_id >> 8 == 0x09F113)
+    with_it = [Mode(f.data[2]) for t, f in frames if t == first and f.arbitration_id == STATUS_ID]
+    assert with_it == [Mode.DEGRADED]

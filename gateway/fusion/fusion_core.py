@@ -103,6 +103,7 @@ class FusionCore:
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
         self._last_sample: ImuSample | None = None
         self._saturated = False  # saturated samples since the last good one
+        self._told_mode: Mode | None = None  # mode of the last NAVGW_STATUS sent
         self._last_saturation_log = -math.inf
 
     @classmethod
@@ -181,7 +182,8 @@ class FusionCore:
         if not (self.claimer.claimed and self.scheduler.is_due(sample.t)):
             return self._counted(polled) if polled else _NOTHING  # most samples send nothing
         sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
-        return self._counted(chain(polled, self.scheduler.frames(sent, self.loop_status(sample.t))))
+        frames = self.scheduler.frames(sent, self.loop_status(sample.t), now=self._told(sent.mode))
+        return self._counted(chain(polled, frames))
 
     def on_bus_frame(self, msg: can.Message, now: float) -> Iterator[can.Message]:
         """A frame received from the ISOBUS (address claims, requests, frames from our
@@ -228,7 +230,17 @@ class FusionCore:
             loop = replace(loop, imu_samples_lost=loop.imu_samples_lost + missing)
         else:
             loop = replace(loop, imu_samples_lost=255)
-        return self.scheduler.frames(silent, loop, only=(Pgn.NAVGW_STATUS,))
+        only = (Pgn.NAVGW_STATUS,)
+        return self.scheduler.frames(silent, loop, only=only, now=self._told(Mode.FAULT))
+
+    def _told(self, mode: Mode) -> tuple[Pgn, ...]:
+        """NAVGW_STATUS at once when ``mode`` is not the one the bus was last told, else
+        nothing beyond its 10 Hz: a frame sent in a new mode (DEGRADED after a gap, FAULT)
+        goes out with the status that says so, not up to 0.1 s before it."""
+        if mode is self._told_mode:
+            return ()
+        self._told_mode = mode
+        return (Pgn.NAVGW_STATUS,)
 
     def _counted(self, frames: Iterable[can.Message]) -> Iterator[can.Message]:
         for msg in frames:

@@ -165,10 +165,15 @@ class OutputScheduler:
                 self._groups.append(group.split(outside))
 
     def frames(
-        self, solution: Solution, loop: LoopStatus, only: Collection[Pgn] | None = None
+        self,
+        solution: Solution,
+        loop: LoopStatus,
+        only: Collection[Pgn] | None = None,
+        now: Collection[Pgn] = (),
     ) -> Iterator[can.Message]:
         """Frames to send for ``solution`` (none before the address is claimed); ``only``
-        limits them to those PGNs.
+        limits them to those PGNs; ``now`` adds PGNs at this instant whether due or not (the
+        status on a change of mode), their grid unchanged.
 
         Which PGNs are due and their SID are decided now; each frame is encoded as the caller
         takes it, in the order of :data:`DEFAULT_RATES_HZ` (attitude and rate of turn first),
@@ -178,6 +183,9 @@ class OutputScheduler:
         if not loop.address_claimed:
             return iter(())
         pgns = self.due(solution.t, only)
+        if now:
+            extra = [p for p in now if p in self.rates_hz and p not in pgns]
+            pgns = sorted([*pgns, *extra], key=self._order.__getitem__)
         if not pgns:
             return iter(())
         if not SID_PGNS.isdisjoint(pgns):
