@@ -5,12 +5,20 @@ from __future__ import annotations
 import calendar
 import logging
 import math
+import re
+from collections.abc import Callable, Sequence
+from dataclasses import asdict
+from functools import partial, reduce
+from operator import xor
 from pathlib import Path
+from typing import Any
+from unittest.mock import patch
 
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from drivers import nmea
 from drivers.errors import ErrorPolicy, InputError
 from drivers.nmea import KNOT_MPS, NmeaDecoder, nmea_checksum, read_fixes_from_log
 from drivers.samples import FixQuality, GnssFix
@@ -352,3 +360,278 @@ def test_the_caller_chooses_what_bad_input_does(
             decoder.feed(bad, 1.1)
     assert decoder.counters.checksum_errors == 1 and len(fixes + decoder.flush()) == 1
     assert len(caplog.messages) == (1 if policy is ErrorPolicy.LOG else 0)
+
+
+# --- the fast path (issue 14): the same output as the careful path, for any input ---------------
+#
+# `feed_line` takes a line that is one sentence without framing it as bytes, and a fix sentence
+# with an ordinary address without pynmea2.parse (its fields, split once, go by the positions
+# of its pynmea2 class). `fast_path = False` sends every input the careful way, as before.
+
+FIELDS = st.one_of(
+    st.text(alphabet="0123456789.-+NSEWAVTMKRFD ", max_size=14),
+    st.sampled_from(["", "nan", "inf", "1e3", "000000", "596000", "9000.0000", "\u0661\u0662"]),
+    st.sampled_from(["99999999999999999999", "18100.0", "4807.0380", "01131.0000", "230394"]),
+)
+TIMES = ["123519.00", "123519.10", "123519.20", "", "235959.99", "000000.00"]
+GOOD = [x for tod in TIMES for x in epoch(tod)] + [
+    s("GGA,,,,,,0,00,99.99,,,,,,", "GP"),
+    s("RMC,,V,,,,,,,,,,N", "GP"),
+    s("GSV,1,1,00", "GP"),
+    "$PUBX,00*33",
+    s("TXT,01,01,02,u-blox", "GP"),
+]
+
+
+def _with_checksum(body: str) -> str:
+    return f"${body}*{reduce(xor, body.encode('utf-8'), 0):02X}"  # (any text: edits add UTF-8)
+
+
+@st.composite
+def nmea_lines(draw: st.DrawFn) -> str:
+    """A sentence as a receiver sends it, or damaged: fields, address, checksum, characters."""
+    if draw(st.integers(0, 2)):
+        body, _, _ = draw(st.sampled_from(GOOD))[1:].partition("*")
+        fields = body.split(",")
+        for _ in range(draw(st.sampled_from([0, 0, 0, 1, 2]))):
+            fields[draw(st.integers(1, len(fields) - 1))] = draw(FIELDS)
+        if draw(st.integers(0, 4)) == 0:
+            fields = fields[: draw(st.integers(1, len(fields)))]  # cut short
+        body = ",".join(fields)
+    else:
+        talker = draw(st.sampled_from(["GN", "GP", "gp", "Gp", "pX", "PX", "P", "", "G_", "9z"]))
+        kind = draw(st.sampled_from(["GGA", "RMC", "VTG", "GST", "ZDA", "HDT", "GSV", "gga"]))
+        body = talker + kind + "," + ",".join(draw(st.lists(FIELDS, max_size=16)))
+    text = _with_checksum(body)
+    damage = draw(st.integers(0, 14))
+    if damage == 0:
+        text = text[: text.index("*")]  # no checksum
+    elif damage == 1:
+        text = text[:-2] + draw(st.sampled_from(["00", "zz", "5", "ABC", "", "*5C"]))
+    elif damage == 2:
+        text = "!" + text[1:]
+    elif damage == 3:
+        at = draw(st.integers(0, len(text)))
+        edit = draw(st.text(alphabet="$!*,. \x00\t\r\n\x7f\xe9\u0661Az9", min_size=1, max_size=3))
+        text = text[:at] + edit + text[at + draw(st.integers(0, 2)) :]
+    return text
+
+
+INPUTS = st.lists(
+    st.tuples(
+        st.one_of(st.none(), st.floats(0.0, 2e9)),
+        nmea_lines(),
+        st.one_of(st.none(), st.integers(1)),
+    ),
+    max_size=20,
+)
+OPTIONS = st.fixed_dictionaries(
+    {
+        "require_checksum": st.booleans(),
+        "max_sentence_len": st.sampled_from([256, 82, 30]),
+        "on_error": st.sampled_from(list(ErrorPolicy)),
+    }
+)
+
+
+class _Warnings(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__()
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+def trace(
+    inputs: Sequence[tuple[float | None, bytes | str, int | None]], *, fast: bool, **options: Any
+) -> tuple[list[Any], dict[str, Any], list[str], list[tuple[float | None, str]]]:
+    """All a decoder gives: per input its fixes or InputError; counters, warnings, sentences."""
+    seen: list[tuple[float | None, str]] = []
+    decoder = NmeaDecoder("eq", on_sentence=lambda t, x: seen.append((t, x)), **options)
+    decoder.fast_path = fast
+    warnings = _Warnings()
+    logger = logging.getLogger("drivers.nmea")
+    logger.addHandler(warnings)
+    level, logger.level = logger.level, logging.WARNING
+    out: list[Any] = []
+    calls: list[Callable[[], list[GnssFix]]] = [
+        partial(decoder.feed_line, item, t_host, record)
+        if isinstance(item, str)
+        else partial(decoder.feed, item, t_host)
+        for t_host, item, record in inputs
+    ]
+    try:
+        for call in [*calls, decoder.flush]:
+            try:
+                out.append(call())
+            except InputError as err:
+                out.append((err.what, err.where, err.expected))
+    finally:
+        logger.removeHandler(warnings)
+        logger.level = level
+    return out, asdict(decoder.counters), warnings.messages, seen
+
+
+@settings(max_examples=400, deadline=None)
+@given(INPUTS, OPTIONS)
+def test_fast_path_of_log_lines_equals_the_careful_path(
+    inputs: list[tuple[float | None, str, int | None]], options: dict[str, Any]
+) -> None:
+    fast = trace(inputs, fast=True, **options)
+    assert fast == trace(inputs, fast=False, **options)
+
+
+@settings(max_examples=300, deadline=None)
+@given(INPUTS, OPTIONS, st.sampled_from(["\r\n", "\n", "\r", ""]), st.integers(1, 64))
+def test_fast_path_of_byte_streams_equals_the_careful_path(
+    inputs: list[tuple[float | None, str, int | None]],
+    options: dict[str, Any],
+    eol: str,
+    chunk: int,
+) -> None:
+    data = "".join(text + eol for _, text, _ in inputs).encode("utf-8", "replace")
+    chunks = [(float(i), data[i : i + chunk], None) for i in range(0, len(data), chunk)]
+    assert trace(chunks, fast=True, **options) == trace(chunks, fast=False, **options)
+
+
+def test_fast_path_is_taken_and_gives_every_field() -> None:
+    """The usual log: one sentence a line, all fix types; fixes as the careful path's."""
+    lines = [(1.0 + i / 100, x, i + 1) for i, x in enumerate(epoch() + epoch("123519.10"))]
+    fast, careful = trace(lines, fast=True), trace(lines, fast=False)
+    assert fast == careful and fast[1]["sentences_ok"] == 12 and fast[1]["fixes"] == 2
+    with patch("pynmea2.parse", side_effect=AssertionError("parsed twice")):
+        assert trace(lines, fast=True) == fast
+
+
+def test_warnings_of_the_fast_path_name_the_record_or_the_byte(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    good, bad = s("HDT,270.0,T"), s("HDT,270.0,T")[:-2] + "00"
+    decoder = NmeaDecoder("test", warn_interval_s=0.0)
+    with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+        decoder.feed_line(bad, 1.0, 7)
+        decoder.feed_line(good, 2.0)
+        decoder.feed_line(bad, 3.0)
+    assert [m.split(": ")[0] for m in caplog.messages] == ["test record 7", f"test byte {2 * 18}"]
+
+
+def test_a_proprietary_lookalike_of_a_fix_sentence_is_a_parse_error_not_a_crash(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """'$pXGGA': pynmea2's regex reads a proprietary sentence 'pXGG' (it ignores case), our
+    address rule a GGA: a KeyError out of the decoder before issue 14."""
+    line = s("GGA,123519.00,4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,", talker="pX")
+    for fast in (True, False):
+        decoder = NmeaDecoder("test")
+        decoder.fast_path = fast
+        with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+            assert decoder.feed_line(line, 1.0, 1) + decoder.flush() == []
+        assert (decoder.counters.parse_errors, decoder.counters.by_type) == (1, {"GGA": 1})
+    assert caplog.messages[-1].endswith(
+        "pynmea2 reads a ProprietarySentence, without 'timestamp', sentence dropped; "
+        "expected fields as NMEA 0183 defines them"
+    )
+
+
+@given(st.text(alphabet=st.characters(max_codepoint=127), max_size=300))
+def test_checksum_is_the_xor_of_the_characters(body: str) -> None:
+    assert nmea_checksum(body) == reduce(xor, body.encode("ascii"), 0)
+
+
+# The field converters as they were before issue 14 (regex, then int/float per use)
+def _old_tod(s: str) -> float | None:
+    if not s:
+        return None
+    m = re.fullmatch(r"(\d\d)(\d\d)(\d\d(?:\.\d*)?)", s)
+    if not m or int(m[1]) > 23 or int(m[2]) > 59 or float(m[3]) >= 61.0:
+        raise ValueError(f"time {s!r} is not hhmmss.ss")
+    return int(m[1]) * 3600.0 + int(m[2]) * 60.0 + float(m[3])
+
+
+def _old_angle(limit_deg: float, negative: str, positive: str) -> Callable[..., float | None]:
+    def convert(value: str, hemisphere: str) -> float | None:
+        if not value and not hemisphere:
+            return None
+        m = re.fullmatch(r"(\d{1,3})(\d\d(?:\.\d*)?)", value)
+        if not m or float(m[2]) >= 60.0 or hemisphere not in (negative, positive):
+            raise ValueError(f"{value!r},{hemisphere!r} is not ddmm.mm,{positive}|{negative}")
+        deg = int(m[1]) + float(m[2]) / 60.0
+        if deg > limit_deg:
+            raise ValueError(f"{value!r} is beyond {limit_deg:g} deg")
+        return -deg if hemisphere == negative else deg
+
+    return convert
+
+
+def _outcome(convert: Callable[..., Any], *args: str) -> tuple[str, Any]:
+    try:
+        return "value", convert(*args)
+    except (ValueError, OverflowError) as err:
+        return type(err).__name__, str(err)
+
+
+CONVERTER_TEXT = st.one_of(
+    st.text(alphabet="0123456789.+-NSEW ", max_size=14),
+    st.text(max_size=6),
+    st.sampled_from(["235960.5", "240000", "4807.0380", "18000.0000", "9000.00001", "nan"]),
+    st.sampled_from(
+        ["\u0661\u0662\u0663\u0664.5", "\uff11\uff12\uff13\uff14\uff15\uff16", "12\u00b234.5"]
+    ),
+)
+
+
+@settings(max_examples=300)
+@given(CONVERTER_TEXT, st.sampled_from(["N", "S", "E", "W", "", "n", "NS"]))
+def test_converters_remember_results_only(text: str, letter: str) -> None:
+    """Cached converters give what they compute (an error is raised again each time) and what
+    the converters before issue 14 gave."""
+    for convert in (
+        nmea._number, nmea._count, nmea._tod, nmea._ddmmyy, nmea._quality, nmea._letter,
+        nmea._rad,
+    ):  # fmt: skip
+        for _ in range(2):
+            assert _outcome(convert, text) == _outcome(convert.__wrapped__, text)
+    for _ in range(2):
+        assert _outcome(nmea._tod, text) == _outcome(_old_tod, text)
+        assert _outcome(nmea._LAT, text, letter) == _outcome(
+            _old_angle(90.0, "S", "N"), text, letter
+        )
+        assert _outcome(nmea._LON, text, letter) == _outcome(
+            _old_angle(180.0, "W", "E"), text, letter
+        )
+        assert _outcome(nmea._zda_date, text, text[:2], letter) == _outcome(
+            nmea._zda_date.__wrapped__, text, text[:2], letter
+        )
+
+
+@settings(max_examples=200, deadline=None)
+@given(INPUTS, OPTIONS)
+def test_feed_lines_is_feed_line_on_each_line(
+    inputs: list[tuple[float | None, str, int | None]], options: dict[str, Any]
+) -> None:
+    """Replay's loop (feed_line's fast path inline) gives the careful path's fixes, counters,
+    warnings and first error."""
+    numbered = [(t_host, line, record) for record, (t_host, line, _) in enumerate(inputs, 7)]
+    careful = trace(numbered, fast=False, **options)
+    decoder = NmeaDecoder("eq", **options)
+    warnings = _Warnings()
+    logger = logging.getLogger("drivers.nmea")
+    logger.addHandler(warnings)
+    level, logger.level = logger.level, logging.WARNING
+    fixes: list[GnssFix] = []
+    try:
+        for fix in decoder.feed_lines([(t, line) for t, line, _ in numbered], first_record=7):
+            fixes.append(fix)
+        fixes += decoder.flush()
+        error = None
+    except InputError as err:
+        error = (err.what, err.where, err.expected)
+    finally:
+        logger.removeHandler(warnings)
+        logger.level = level
+    errors = [x for x in careful[0] if isinstance(x, tuple)]
+    assert error == (errors[0] if errors else None)
+    if error is None:
+        assert (fixes, asdict(decoder.counters)) == ([f for x in careful[0] for f in x], careful[1])
+        assert warnings.messages == careful[2]

@@ -7,6 +7,7 @@ are fed to the decoder as bytes, in chunks of a serial port's size.
 from __future__ import annotations
 
 import calendar
+import logging
 import math
 import re
 from collections import Counter
@@ -16,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-from drivers.nmea import KNOT_MPS, NmeaDecoder, read_fixes_from_log
+from drivers.nmea import KNOT_MPS, NmeaCounters, NmeaDecoder, read_fixes_from_log
 from drivers.samples import FixQuality, GnssFix
 
 DATA = Path(__file__).parent / "data" / "nmea"
@@ -141,3 +142,29 @@ def test_untimed_no_fix_sentences_with_host_time() -> None:
 @pytest.mark.parametrize("name", ["nmea-rtk.log", "ublox-zed-f9p-nmea.log", "gpsdf.log"])
 def test_log_reader_path_gives_the_same_fixes(name: str) -> None:
     assert list(read_fixes_from_log(DATA / name)) == decode(name)[0]
+
+
+@pytest.mark.parametrize("path", LOGS, ids=[p.name for p in LOGS])
+def test_fast_path_gives_what_the_careful_path_gives(
+    path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Issue 14: bytes in serial-port chunks and log lines (records), decoded the fast way and
+    the careful way (framing every line, pynmea2.parse every sentence): the same fixes,
+    counters and warnings."""
+    data = path.read_bytes()
+    chunks = [data[i : i + 64] for i in range(0, len(data), 64)]
+    lines = [x.decode("ascii", "replace").strip() for x in data.splitlines()]
+    results: list[tuple[list[GnssFix], NmeaCounters, list[GnssFix], NmeaCounters, list[str]]] = []
+    for fast in (True, False):
+        caplog.clear()
+        by_bytes, by_lines = NmeaDecoder(path.name), NmeaDecoder(path.name)
+        by_bytes.fast_path = by_lines.fast_path = fast
+        with caplog.at_level(logging.WARNING, logger="drivers.nmea"):
+            fixes = [f for i, x in enumerate(chunks) for f in by_bytes.feed(x, i * 0.01)]
+            fixes += by_bytes.flush()
+            line_fixes = [
+                f for i, x in enumerate(lines) for f in by_lines.feed_line(x, 100 + i * 0.01, i + 1)
+            ]
+            line_fixes += by_lines.flush()
+        results.append((fixes, by_bytes.counters, line_fixes, by_lines.counters, caplog.messages))
+    assert results[0] == results[1]

@@ -8,6 +8,8 @@ import re
 from pathlib import Path
 
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from drivers.errors import InputError
 from drivers.logs.nmea_log import (
@@ -117,3 +119,75 @@ def test_any_line_end_splits_records(tmp_path: Path, eol: str) -> None:
     path = tmp_path / "log.nmea"
     path.write_bytes(eol.join([f"(1700000000.1) {GGA}", f"(1700000000.2) {RMC}", ""]).encode())
     assert list(read_nmea_log(path)) == [(1700000000.1, GGA), (1700000000.2, RMC)]
+
+
+class _Warnings(logging.Handler):
+    def __init__(self) -> None:
+        super().__init__()
+        self.messages: list[str] = []
+
+    def emit(self, record: logging.LogRecord) -> None:
+        self.messages.append(record.getMessage())
+
+
+SPACE = st.sampled_from(["", " ", "  ", "\t", "\u00a0", "\u2003", "\x1c", "\x0b", "\x85"])
+STAMP = st.one_of(
+    st.from_regex(r"\d{1,10}(\.\d{0,6})?", fullmatch=True),
+    st.sampled_from(["", ".5", "1.", "1.2.3", "-1", "1e5", "1_0", " 1", "\u0661\u0662.3", "inf"]),
+    st.text(alphabet="0123456789.()x ", max_size=8),
+)
+LOG_LINE = st.one_of(
+    st.builds(
+        lambda a, stamp, close, b, rest, c: f"{a}({stamp}{close}{b}{rest}{c}",
+        *(SPACE, STAMP, st.sampled_from([")", "", "))"]), SPACE),
+        *(st.sampled_from(["", GGA, RMC, "$", "x y", "(1) $X"]), SPACE),
+    ),
+    st.builds(lambda a, s, b: a + s + b, SPACE, st.sampled_from(["", GGA, "junk", ")"]), SPACE),
+    st.text(max_size=30),
+)
+
+
+@settings(max_examples=300, deadline=None)
+@given(st.lists(LOG_LINE, max_size=25), st.integers(0, 4))
+def test_reader_gives_what_parse_nmea_log_line_gives(lines: list[str], max_reports: int) -> None:
+    """Issue 14: the reader parses well-formed lines itself (no where-string per line); for
+    any line it keeps and reports what parse_nmea_log_line says of it."""
+    stream = io.StringIO("".join(x + "\n" for x in lines))
+    expected, bad, reports = [], 0, []
+    for lineno, line in enumerate(io.StringIO(stream.getvalue()), 1):
+        try:
+            parsed = parse_nmea_log_line(line, f"<stream>:{lineno}")
+        except InputError as exc:
+            bad += 1
+            reports += [f"skipped malformed NMEA log line: {exc}"] if bad <= max_reports else []
+            continue
+        expected += [parsed] if parsed is not None else []
+    if bad > max_reports:
+        reports.append(
+            f"<stream>: {bad} malformed lines skipped in all ({bad - max_reports} not shown)"
+        )
+    assert read_all(stream, max_reports) == (expected, bad, reports)
+
+
+@settings(max_examples=100, deadline=None)
+@given(st.lists(LOG_LINE, max_size=25))
+def test_reader_of_a_binary_stream_decodes_each_line_as_ascii(lines: list[str]) -> None:
+    data = "".join(x + "\n" for x in lines).encode("utf-8", "replace")
+    text = io.StringIO(
+        "".join(x.decode("ascii", errors="replace") for x in io.BytesIO(data)), newline="\n"
+    )
+    assert read_all(io.BytesIO(data), 3) == read_all(text, 3)
+
+
+def read_all(
+    stream: io.StringIO | io.BytesIO, max_reports: int
+) -> tuple[list[tuple[float | None, str]], int, list[str]]:
+    warnings = _Warnings()
+    logger = logging.getLogger("drivers.logs.nmea_log")
+    logger.addHandler(warnings)
+    try:
+        reader = read_nmea_log(stream, max_reports)
+        got = list(reader)
+    finally:
+        logger.removeHandler(warnings)
+    return got, reader.bad_lines, warnings.messages

@@ -13,6 +13,7 @@ expected; the first ``max_reports`` of a file, then a summary), counted and skip
 
 from __future__ import annotations
 
+import io
 import logging
 import os
 import re
@@ -27,6 +28,9 @@ from drivers.logs.closing import Closing
 log = logging.getLogger(__name__)
 
 _STAMP = re.compile(r"\d+(?:\.\d*)?")
+# a well-formed prefix as parse_nmea_log_line takes it: '(', _STAMP up to the first ')', the
+# whitespace that str.strip() takes (the same: Py_UNICODE_ISSPACE)
+_PREFIX = re.compile(r"\((\d+(?:\.\d*)?)\)\s*")
 LINE_FORMAT = "'(<seconds>) $<sentence>', e.g. '(1700000000.123456) $GNGGA,...*hh', or no prefix"
 
 #: Malformed lines logged individually per file before the reader goes quiet (then a summary).
@@ -92,17 +96,36 @@ class NmeaLogReader(Closing, Iterator[tuple[float | None, str]]):
         self._lines = self._read(stream)
 
     def _read(self, stream: Iterable[str | bytes]) -> Iterator[tuple[float | None, str]]:
+        prefix = _PREFIX.match
+        lines: Iterable[str] = (
+            stream  # (a text stream, as a file this reader opened: lines of str)
+            if isinstance(stream, io.TextIOBase)
+            else (
+                x.decode("ascii", errors="replace") if isinstance(x, bytes) else x for x in stream
+            )
+        )
         try:
-            for lineno, raw in enumerate(stream, 1):
-                line = raw.decode("ascii", errors="replace") if isinstance(raw, bytes) else raw
-                try:
+            for lineno, line in enumerate(lines, 1):
+                # parse_nmea_log_line inline for a well-formed line (replay reads millions)
+                text = line.strip()
+                m = prefix(text)
+                if m is not None:
+                    sentence = text[m.end() :]
+                    if sentence:
+                        yield float(m[1]), sentence
+                        continue
+                elif text[:1] != "(":
+                    if text:
+                        yield None, text
+                    continue
+                try:  # malformed: the reason, from the careful path
                     parsed = parse_nmea_log_line(line, f"{self.name}:{lineno}")
                 except InputError as exc:
                     self.bad_lines += 1
                     if self.bad_lines <= self.max_reports:
                         log.warning("skipped malformed NMEA log line: %s", exc)
                     continue
-                if parsed is not None:
+                if parsed is not None:  # (not reached: the fast path takes every good line)
                     yield parsed
         finally:
             self._summarise()
@@ -116,6 +139,9 @@ class NmeaLogReader(Closing, Iterator[tuple[float | None, str]]):
                 self.bad_lines,
                 self.bad_lines - self.max_reports,
             )
+
+    def __iter__(self) -> Iterator[tuple[float | None, str]]:
+        return self._lines  # (the generator itself: a for loop calls no __next__ per line)
 
     def __next__(self) -> tuple[float | None, str]:
         return next(self._lines)
