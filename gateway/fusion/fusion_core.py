@@ -56,8 +56,9 @@ IMU_SILENT_S = 0.2
 RESTART_GAP_S = 1.0
 
 
-#: What an input that sends nothing returns (no generator per IMU sample).
-_NOTHING: Iterator[can.Message] = iter(())
+#: What an input that sends nothing returns (no generator per IMU sample); callers may skip
+#: it by identity.
+NOTHING: Iterator[can.Message] = iter(())
 
 
 @dataclass(frozen=True, slots=True)
@@ -180,7 +181,7 @@ class FusionCore:
         self.engine.imu(sample)
         polled = self.claimer.poll(sample.t)
         if not (self.claimer.claimed and self.scheduler.is_due(sample.t)):
-            return self._counted(polled) if polled else _NOTHING  # most samples send nothing
+            return self._counted(polled) if polled else NOTHING  # most samples send nothing
         sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
         frames = self.scheduler.frames(sent, self.loop_status(sample.t), now=self._told(sent.mode))
         return self._counted(chain(polled, frames))

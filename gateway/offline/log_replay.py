@@ -16,7 +16,7 @@ from drivers.nmea import NmeaCounters
 from drivers.samples import ImuCounters
 from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import GatewayConfig
-from gateway.fusion.fusion_core import FusionCore, FusionStats
+from gateway.fusion.fusion_core import NOTHING, FusionCore, FusionStats
 from gateway.offline.log_inputs import Input, LogInputs
 
 #: Wraps the input iterator, e.g. in a progress bar; gets the CAN log's size in bytes.
@@ -57,12 +57,15 @@ def replay(
     t_first = t_last = None
     wall = time.perf_counter()
     with CandumpWriter(out_log, config.isobus.channel or config.imu.channel) as writer:
+        write_all, on_input = writer.write_all, core.on_input
         for item in stream:
             if t_first is None:
                 t_first = item.t
-                writer.write_all(core.start(item.t))
+                write_all(core.start(item.t))
             t_last = item.t
-            writer.write_all(core.on_input(item))
+            frames = on_input(item)
+            if frames is not NOTHING:  # most IMU samples send nothing
+                write_all(frames)
     wall = time.perf_counter() - wall
     return ReplaySummary(
         stats=core.stats,

@@ -385,10 +385,19 @@ class ObserverEngine:
         a, b = hist[i - 1], hist[i]
         u = (t_s - a[_T]) / (b[_T] - a[_T])
         psi = (a[_PSI] + u * wrap_pi(b[_PSI] - a[_PSI])) % (2.0 * math.pi)
-        sf_n, sf_e, sf_d, _, hc, wx, wy, wz = (
-            x + u * (y - x) for x, y in zip(a[_T + 1 :], b[_T + 1 :], strict=True)
+        _, a1, a2, a3, _, a5, a6, a7, a8 = a
+        _, b1, b2, b3, _, b5, b6, b7, b8 = b
+        return (
+            t_s,
+            a1 + u * (b1 - a1),
+            a2 + u * (b2 - a2),
+            a3 + u * (b3 - a3),
+            psi,
+            a5 + u * (b5 - a5),
+            a6 + u * (b6 - a6),
+            a7 + u * (b7 - a7),
+            a8 + u * (b8 - a8),
         )
-        return (t_s, sf_n, sf_e, sf_d, psi, hc, wx, wy, wz)
 
     def _attitude_at(self, row: _Row, c_bn: np.ndarray) -> np.ndarray:
         """C_b^n at the time of ``row``: the current C turned back by the body rotation since
