@@ -333,6 +333,9 @@ class ImuDecoder:
             length = db.get_message_by_name(f.value).length
             key = _ACCEL_KEY if f is _ACCEL else 0
             self._frames[i & PGN_SA_MASK] = (f, length, i, unpack, reserved, key)
+        #: The bridge's frames by ``arbitration_id & key_mask``: any other is not the IMU's.
+        self.frame_keys = frozenset(self._frames)
+        self.key_mask = PGN_SA_MASK
         diag = [s for s in aux.signals if s.name.startswith("DIAG_")]
         base = min(s.start for s in diag)
         self._diag_bits = {s.name: s.start - base for s in diag}

@@ -73,8 +73,9 @@ def test_other_nodes_claims_and_requests_replay_into_our_answers(
 ) -> None:
     """SPEC 5: CAN frames that are not the IMU bridge's are received from the ISOBUS. At 30 s
     a node requests claims (we answer from 0x1C); at 40 s a lower NAME takes 0x1C (we move
-    to 0x81, never the bridge's 0x80); the recorded gateway's own claim (our NAME) is ours,
-    not a clone: STATUS stays as it was."""
+    to 0x81, never the bridge's 0x80); at 50 s a node sends from 0x81 (an address violation:
+    DEGRADED and our claim again). The recorded gateway's own claim (our NAME) and its own
+    frames from 0x1C before 40 s are ours, not a clone: STATUS stays as it was."""
     config = load_config(run_dir / "navgw.toml")
     ours = FusionCore.from_config(config).claimer.name
     lines = (run_dir / "imu.log").read_text().splitlines(keepends=True)
@@ -82,8 +83,11 @@ def test_other_nodes_claims_and_requests_replay_into_our_answers(
     claim, request = Pgn.ADDRESS_CLAIM, Pgn.ISO_REQUEST
     others = [  # time after the log's start, source, PGN, data
         (5.0, 0x1C, claim, ours.to_bytes(8, "little")),
+        (10.0, 0x1C, Pgn.ATTITUDE, bytes(8)),  # the recorded gateway's own output
         (30.0, 0xFE, request, int(claim).to_bytes(3, "little")),
         (40.0, 0x1C, claim, (1).to_bytes(8, "little")),
+        (45.0, 0x1C, Pgn.ATTITUDE, bytes(8)),  # the new holder's: none of our business
+        (50.0, 0x81, Pgn.ATTITUDE, bytes(8)),  # someone sends as us
     ]
     extra = tmp_path / "extra.log"
     with CandumpWriter(extra, "can0") as w:
@@ -108,14 +112,19 @@ def test_other_nodes_claims_and_requests_replay_into_our_answers(
     ]
     assert [a for t, a in claims if 29.0 < t < 31.0] == [0x1C]  # the request answered
     assert [a for t, a in claims if 39.0 < t < 41.0] == [0x81]  # moved, not onto the bridge
+    assert [a for t, a in claims if 41.0 < t < 51.0] == [0x81]  # the violation answered
     sources = {f.arbitration_id & 0xFF for f in frames if f.timestamp - t0 > 41.0}
     assert sources == {0x81}
-    modes = {
-        f.data[2]
-        for f in frames
-        if (f.arbitration_id >> 8) & 0x3FFFF == 0xFF22 and 5.0 < f.timestamp - t0 < 30.0
-    }
-    assert int(Mode.DEGRADED) not in modes, modes  # the recorded own claim is not a clone
+
+    def modes(t_from: float, t_to: float) -> set[int]:
+        return {
+            f.data[2]
+            for f in frames
+            if (f.arbitration_id >> 8) & 0x3FFFF == 0xFF22 and t_from < f.timestamp - t0 < t_to
+        }
+
+    assert int(Mode.DEGRADED) not in modes(5.0, 30.0)  # recorded own frames are not a clone's
+    assert modes(50.0, 55.0) == {int(Mode.DEGRADED)}  # the violation, at once and held
 
 
 def navgw(*args: str) -> subprocess.CompletedProcess[str]:

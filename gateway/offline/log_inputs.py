@@ -2,9 +2,16 @@
 
 Replay, the accuracy benchmark and tests feed engines from here, so they see exactly the
 samples and fixes the live service would: IMU samples at their reconstructed sample time,
-GNSS fixes at their host receive time (after the IMU samples that preceded them). Other
-nodes' address claims and requests in the CAN log come as :class:`BusFrame` (SPEC 5: they
-replay into the gateway's answers); claims of ``own_name`` are the recorded gateway's own.
+GNSS fixes at their host receive time (after the IMU samples that preceded them).
+
+Every other frame of the CAN log comes as a :class:`BusFrame`, received from the ISOBUS (SPEC
+5: by default the IMU bridge and the ISOBUS are one bus, so a recording of it holds other
+nodes' claims, requests and commands, which replay into the gateway's answers), except the
+recorded gateway's own: its claims (those of ``own_name``) and every frame from the address
+it held. That address is ``own_address`` (the configured preferred one) until a claim of
+``own_name`` in the log says another; a cannot-claim, or another NAME's claim of it, leaves
+it none. Live, the echo filter
+drops our own frames the same way before the claimer sees them.
 """
 
 from __future__ import annotations
@@ -21,13 +28,11 @@ from drivers.logs.nmea_log import NmeaLogReader, read_nmea_log
 from drivers.nmea import NmeaDecoder, read_fixes_from_log
 from drivers.samples import GnssFix, ImuAux, ImuSample
 from gateway.fusion.fusion_core import BusFrame
-from gateway.isobus.j1939 import FrameId, Pgn
+from gateway.isobus.j1939 import NULL_ADDRESS, FrameId, Pgn
 
 Input = ImuSample | ImuAux | GnssFix | BusFrame
 _NAME_BYTES = 8
-#: PDU formats (id bits 16-23) of the network-management PGNs replay hands to the claimer:
-#: one shift and mask per frame tells the IMU bridge's frames from them.
-_NETWORK_FORMATS = frozenset({Pgn.ISO_REQUEST >> 8 & 0xFF, Pgn.ADDRESS_CLAIM >> 8 & 0xFF})
+_SOURCE_MASK = 0xFF
 
 
 class LogInputs:
@@ -39,6 +44,7 @@ class LogInputs:
         nmea_log: str | Path,
         imu_config: ImuCanConfig | None = None,
         own_name: int | None = None,
+        own_address: int | None = None,
     ) -> None:
         self.can_log, self.nmea_log = Path(can_log), Path(nmea_log)
         for path, what in ((self.can_log, "CAN log"), (self.nmea_log, "NMEA log")):
@@ -51,6 +57,7 @@ class LogInputs:
         self.can_reader = read_candump(self.can_log)
         self.nmea_reader: NmeaLogReader | None = None
         self.own_name = own_name
+        self.own_address = own_address
 
     @property
     def bad_can_lines(self) -> int:
@@ -68,29 +75,37 @@ class LogInputs:
         return _merged(self._can_inputs(), gnss)
 
     def _can_inputs(self) -> Iterator[ImuSample | ImuAux | BusFrame]:
-        """IMU samples from the bridge's frames; other nodes' claims and requests as they are."""
-        feed = self.imu_decoder.feed
-        network = _NETWORK_FORMATS
+        """IMU samples from the bridge's frames; the other nodes' frames as they are."""
+        decoder = self.imu_decoder
+        feed = decoder.feed
+        bridge = decoder.frame_keys
+        key_mask = decoder.key_mask
         for msg in self.can_reader:
             if (
                 msg.is_extended_id
-                and msg.arbitration_id >> 16 & 0xFF in network
+                and msg.arbitration_id & key_mask not in bridge
                 and self._from_another_node(msg)
             ):
                 yield BusFrame(float(msg.timestamp), msg)
             else:
-                yield from feed(msg)
-        self.imu_decoder.finish()
+                yield from feed(msg)  # the bridge's; and the others' the decoder counts
+        decoder.finish()
 
     def _from_another_node(self, msg: can.Message) -> bool:
-        """An address claim or request, and not a claim of the recorded gateway's NAME."""
-        pgn = FrameId.parse(msg.arbitration_id).pgn
-        if pgn == Pgn.ISO_REQUEST:
+        """Not a frame of the recorded gateway: not a claim of its NAME (which tells its
+        address), not from the address it held."""
+        source = msg.arbitration_id & _SOURCE_MASK
+        if FrameId.parse(msg.arbitration_id).pgn == Pgn.ADDRESS_CLAIM:
+            data = msg.data
+            if len(data) >= _NAME_BYTES and int.from_bytes(data[:_NAME_BYTES], "little") == (
+                self.own_name
+            ):
+                self.own_address = None if source == NULL_ADDRESS else source
+                return False
+            if source == self.own_address:  # another NAME claims it: its frames from now on
+                self.own_address = None
             return True
-        return pgn == Pgn.ADDRESS_CLAIM and (
-            len(msg.data) < _NAME_BYTES
-            or int.from_bytes(msg.data[:_NAME_BYTES], "little") != self.own_name
-        )
+        return source != self.own_address
 
 
 def _merged(

@@ -52,7 +52,8 @@ def replay(
     config = config or GatewayConfig()
     inputs = LogInputs(can_log, nmea_log, imu_config(config))
     core = FusionCore.from_config(config, inputs.imu_decoder.counters)
-    inputs.own_name = core.claimer.name  # the recorded gateway's own claims are no one else's
+    # the recorded gateway's own frames are no one else's (its claims, and from its address)
+    inputs.own_name, inputs.own_address = core.claimer.name, config.isobus.preferred_address
     stream: Iterable[Input] = progress(inputs, inputs) if progress else inputs
     t_first = t_last = None
     wall = time.perf_counter()
