@@ -15,6 +15,9 @@ import cantools
 
 IMU_DBC = "navgw_imu.dbc"
 OUTPUT_DBC = "navgw_output.dbc"
+#: Reassembled payloads of the multi-frame (fast-packet) PGNs, under their frames' ids: a
+#: DBC holds one message per id, and OUTPUT_DBC describes those frames one by one.
+OUTPUT_PAYLOADS_DBC = "navgw_output_payloads.dbc"
 
 #: Mask that keeps only the PGN part (data page and PDU format/specific) of a 29-bit J1939 id.
 PGN_MASK = 0x03FFFF00

@@ -214,6 +214,7 @@ _LAYOUTS: dict[str, Layout] = {
         ("alt_msl_m", ("altitude",), _number),
         ("geoid_sep_m", ("geo_sep",), _number),
         ("age_s", ("age_gps_data",), _number),
+        ("reference_station_id", ("ref_station_id",), _count),
     )),
     "RMC": (11, (
         ("tod_s", ("timestamp",), _tod),
@@ -264,6 +265,7 @@ _FIX_QUALITY = {float(q): q for q in FixQuality}  # GGA quality as decoded -> Fi
 _FIX_FIELDS = (
     "t", "t_utc", "quality", "lat_deg", "lon_deg", "alt_m", "num_sats", "hdop", "age_s",
     "sog_mps", "cog_rad", "heading_rad", "sigma_n_m", "sigma_e_m", "sigma_d_m", "mode",
+    "geoid_sep_m", "reference_station_id", "talker",
 )  # fmt: skip
 if tuple(f.name for f in fields(GnssFix))[: len(_FIX_FIELDS)] != _FIX_FIELDS:
     raise ImportError(f"GnssFix fields are not {_FIX_FIELDS}...: update NmeaDecoder._assemble")
@@ -272,6 +274,7 @@ _NO_FIX, _GNSS = FixQuality.NONE, FixQuality.GNSS  # (an enum member lookup cost
 
 #: the values of a sentence type an epoch lacks: every field None (read only)
 _NONE = {kind: {name: None for name, _, _ in layout} for kind, (_, layout) in _LAYOUTS.items()}
+_NONE["GGA"]["talker"] = None  # (not a field: `NmeaDecoder._sentence` adds GGA's)
 _NO_GGA, _NO_RMC, _NO_VTG, _NO_GST, _NO_ZDA, _NO_HDT = (
     _NONE[kind] for kind in ("GGA", "RMC", "VTG", "GST", "ZDA", "HDT")
 )
@@ -688,6 +691,8 @@ class NmeaDecoder:
                 self._parse_error(text, exc, record, offset)
                 return
         self.counters.sentences_ok += 1
+        if kind == "GGA":  # its talker names the satellite systems of the fix
+            values["talker"] = text[1:3]  # (the address's first two characters, either path)
         self._file(kind, values, t_host)
 
     def _parse_error(self, text: str, exc: Exception, record: int | None, offset: int) -> None:
@@ -728,6 +733,8 @@ class NmeaDecoder:
             epoch = _Epoch(None, t_host)
         self._epoch = epoch
         parts = epoch.parts
+        if kind == "GGA" and "GGA" in parts and parts["GGA"]["talker"] != values["talker"]:
+            values["talker"] = None  # one GGA per system (Telit): no one talker names the fix's
         parts[kind] = values
         if t_host is not None:
             epoch.t_host = t_host
@@ -794,7 +801,7 @@ class NmeaDecoder:
         else:
             sog = None if sog_kmh is None else sog_kmh * (1.0 / 3.6)
         valid = quality is not _NO_FIX
-        num_sats = g["num_sats"]
+        num_sats, station = g["num_sats"], g["reference_station_id"]
         return GnssFix(  # by position, in the order of _FIX_FIELDS
             t,
             t_utc,
@@ -812,6 +819,9 @@ class NmeaDecoder:
             gst["sigma_e_m"],
             gst["sigma_d_m"],
             mode,
+            sep if valid else None,  # geoid_sep_m (receivers send 0.0 without a fix)
+            None if station is None else int(station),
+            g["talker"],
         )
 
     def _utc(self, tod: float | None, date_s: float | None) -> float | None:

@@ -96,6 +96,12 @@ class GnssFix:
     sigma_e_m: float | None = None  # GST 1-sigma east
     sigma_d_m: float | None = None  # GST 1-sigma down
     mode: str | None = None  # RMC/VTG mode indicator: A, D, R, F, E, N, ...
+    geoid_sep_m: float | None = None  # GGA geoid height above the ellipsoid (as alt_m: a fix)
+    # GGA differential reference station id as sent (receivers send 0000 without corrections)
+    reference_station_id: int | None = None
+    # GGA talker id (GP, GL, GA, GB, GN, ...): the systems used; None if the epoch's GGAs
+    # have several (one per system)
+    talker: str | None = None
 
     @property
     def position_sigma_m(self) -> tuple[float, float, float] | None:

@@ -4,6 +4,14 @@ The buses echo what we send (``receive_own_messages``, as udp_multicast and sock
 loopback do); as in the live service, received frames go through
 :class:`~gateway.service.bus_links.EchoFilter` before the claimer. Echoes are marked as ours by the
 virtual bus (``is_rx`` false) or, like udp_multicast's, look received (``marks_own=False``).
+
+AgIsoStack++'s test/address_claim_tests.cpp scenarios covered: PartneredClaim (two nodes claim
+two addresses and both hold them: test_two_nodes_on_two_addresses_both_hold_them) and
+CannotClaim (every address held by lower NAMEs: cannot-claim from 254, silent:
+test_no_address_free_sends_cannot_claim_and_stays_silent). Of core_network_management_tests.cpp:
+NewExternalControlFunction and ControlFunctionAddressChange (another node's claim is tracked,
+and a node that moves frees its old address: test_a_node_that_moves_frees_its_old_address);
+CommandedAddress is in test_network_management.py.
 """
 
 import heapq
@@ -14,7 +22,7 @@ from operator import attrgetter
 
 import can
 import pytest
-from nmea2000 import _canboat
+from nmea2000 import NMEA2000Decoder, _canboat
 
 from drivers.samples import GnssFix, ImuSample
 from gateway.config.gateway_config import GatewayConfig
@@ -137,8 +145,8 @@ def test_name_matches_canboats_iso_name() -> None:
     expected = _canboat.iso_name(
         2046,
         123456,
-        device_function=23,
-        device_class=0,
+        device_function=145,
+        device_class=60,
         device_instance=2 << 3 | 1,
         system_instance=0,
         industry_group=IndustryGroup.AGRICULTURE,
@@ -146,6 +154,16 @@ def test_name_matches_canboats_iso_name() -> None:
     )
     assert expected == OURS
     assert OURS >> 60 & 0x7 == 2 and OURS >> 63 == 1
+
+
+def test_name_function_and_class_are_named_by_canboats_tables() -> None:
+    """Class 60 Navigation, function 145 Ownship Position (GNSS): not "Reserved"."""
+    claim = claim_frame(0x1C, OURS)
+    fields = {f.id: f.value for f in NMEA2000Decoder().decode(claim).fields}
+    assert fields["deviceClass"] == "Navigation"
+    assert fields["deviceFunction"] == "Ownship Position (GNSS)"
+    assert fields["industryGroup"] == "Agriculture"
+    assert fields["uniqueNumber"] == 123456
 
 
 def test_alone_claims_preferred_and_sends_nothing_before(buses: tuple[Node, Raw]) -> None:
@@ -267,6 +285,51 @@ def test_preferred_held_by_lower_name_at_start_goes_straight_to_128(
     node.run(0.6)
     assert node.claims() == [128]
     assert node.claimer.claimed and node.claimer.address == 128
+
+
+def test_two_nodes_on_two_addresses_both_hold_them(buses: tuple[Node, Raw]) -> None:
+    """AgIsoStack++ PartneredClaim: another node claims 0x1D next to our 0x1C; neither moves."""
+    node, raw = buses
+    node.start()
+    raw.bus.send(claim_frame(0x1D, OURS - 1))  # a lower NAME, but another address
+    node.run(0.6)
+    raw.bus.send(request_frame(0x1D, 255))  # it asks for the claims: ours comes back
+    node.run(0.05)
+    assert node.claimer.claimed and node.claimer.address == 0x1C
+    assert node.claims() == [0x1C, 0x1C]
+    claims = [
+        FrameId.parse(f.arbitration_id)
+        for f in raw.received()
+        if FrameId.parse(f.arbitration_id).pgn == Pgn.ADDRESS_CLAIM
+    ]
+    assert [c.source for c in claims] == [0x1C, 0x1C]
+
+
+def test_a_node_that_moves_frees_its_old_address(buses: tuple[Node, Raw]) -> None:
+    """AgIsoStack++ ControlFunctionAddressChange: a node at 128 claims 130 with the same NAME;
+    when we then lose 0x1C, 128 is free again and ours."""
+    node, raw = buses
+    node.start()
+    raw.bus.send(claim_frame(128, OURS + 7))
+    node.run(0.6)
+    raw.bus.send(claim_frame(130, OURS + 7))  # the same node, moved
+    raw.bus.send(claim_frame(0x1C, OURS - 1))
+    node.run(0.4)
+    assert node.claimer.claimed and node.claimer.address == 128
+    assert node.claims() == [0x1C, 128]
+
+
+def test_after_losing_the_address_nothing_more_comes_from_it(buses: tuple[Node, Raw]) -> None:
+    """Every frame after the loss, output included, has the new address; none the old."""
+    node, raw = buses
+    node.start()
+    node.run(0.6)
+    raw.received()
+    raw.bus.send(claim_frame(0x1C, OURS - 1))
+    node.run(1.0)
+    seen = raw.received()
+    assert {FrameId.parse(f.arbitration_id).source for f in seen} == {128}
+    assert sum(FrameId.parse(f.arbitration_id).pgn == Pgn.ATTITUDE for f in seen) > 30
 
 
 def test_random_delay_is_seeded_and_bounded() -> None:

@@ -172,9 +172,10 @@ def test_gyro_unpacker_reads_words_with_one_struct_call_and_merges_flag_tests() 
 
 def test_compiles_any_little_endian_layout_of_the_output_dbc() -> None:
     """Other layouts: fields across words of 1, 2, 4 or 8 bytes at any byte, and 3-byte fields
-    (then the whole payload is one integer), over the output DBC's frames."""
+    (then the whole payload is one integer), over the output DBC's frames and payloads."""
     checked = 0
-    for message in dbc.load(dbc.OUTPUT_DBC).messages:
+    outputs = (dbc.load(dbc.OUTPUT_DBC), dbc.load(dbc.OUTPUT_PAYLOADS_DBC))
+    for message in (m for db in outputs for m in db.messages):
         try:
             decoder = LittleEndianDecoder(message)
         except ValueError:

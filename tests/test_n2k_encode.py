@@ -1,6 +1,7 @@
 """Output encoders, checked with the independent ``nmea2000`` decoder (canboat's database)."""
 
 import math
+from dataclasses import replace
 
 import can
 import numpy as np
@@ -9,13 +10,21 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from nmea2000 import NMEA2000Decoder, backend
 
-import dbc
-from drivers.samples import FixQuality
+from drivers.samples import FixQuality, GnssFix
+from gateway.estimation.engine_base import ImuHealth, common_fields
 from gateway.estimation.solution import Convergence, Mode, Solution
+from gateway.fusion.output_guard import OutputGuard
 from gateway.isobus.frame_codec import RESERVED_PREFIX
 from gateway.isobus.j1939 import Pgn
-from gateway.isobus.n2k_encode import GNSS_METHOD_OF_FIX, LAYOUTS, LoopStatus, OutputEncoder
-from tests.test_output_dbc import expected_raw
+from gateway.isobus.n2k_encode import (
+    GNSS_METHOD_OF_FIX,
+    GNSS_TYPE_OF_TALKER,
+    LAYOUTS,
+    LoopStatus,
+    OutputEncoder,
+)
+from tests.test_nmea_real_logs import decode as decode_log
+from tests.test_output_dbc import encoded_message, expected_raw
 
 T = 1_700_000_000.1234  # 2023-11-14 22:13:20.1234 UTC
 FULL = Solution(
@@ -36,6 +45,9 @@ FULL = Solution(
     num_sats=17,
     hdop=0.73,
     age_s=1.4,
+    geoid_sep_m=47.25,
+    reference_station_id=1023,
+    talker="GP",
     gnss_ok=True,
     imu_ok=True,
     is_ekf=True,
@@ -91,16 +103,18 @@ def test_gnss_position_data_reassembled_full_precision() -> None:
     assert d["latitude"].value == pytest.approx(52.123456789012345, abs=1e-14)
     assert d["longitude"].value == pytest.approx(-10.987654321098765, abs=1e-14)
     assert d["altitude"].value == pytest.approx(80.123456, abs=1e-6)
+    assert d["gnssType"].value == "GPS"
     assert d["method"].value == "RTK Fixed Integer"
     assert d["integrity"].value == "No integrity checking"
     assert d["numberOfSvs"].value == 17
     assert d["hdop"].value == pytest.approx(0.73, abs=0.01)
     assert d["pdop"].value is None
-    assert d["geoidalSeparation"].value is None
+    assert d["geoidalSeparation"].value == pytest.approx(47.25, abs=0.01)
     assert d["referenceStations"].value == 1
     station = d["##list##"].value[0]
     assert station["ageOfDgnssCorrections"].value == pytest.approx(1.4, abs=0.01)
-    assert station["referenceStationId"].value is None
+    assert station["referenceStationId"].value == 1023
+    assert station["referenceStationType"].value is None
 
 
 def test_gnss_method_follows_canboat_enum_for_every_fix_quality() -> None:
@@ -119,6 +133,126 @@ def test_gnss_method_follows_canboat_enum_for_every_fix_quality() -> None:
     assert {q: labels[int(m)] for q, m in GNSS_METHOD_OF_FIX.items()} == expected
 
 
+def test_gnss_type_follows_canboat_enum() -> None:
+    labels = dict(backend.DATABASE.lookup("GNS"))
+    assert {t: labels[int(g)] for t, g in GNSS_TYPE_OF_TALKER.items()} == {
+        "GP": "GPS",
+        "GL": "GLONASS",
+        "GA": "Galileo",
+    }
+
+
+def gnss_fields(solution: Solution) -> dict[str, object]:
+    """129029 of ``solution`` through nmea2000: GNSS type, geoid separation, and the
+    reference-station set (None each when the set is padding)."""
+    d = decode(solution)["gnssPositionData"]
+    stations = d["##list##"].value if d["referenceStations"].value else []
+    assert len(stations) == d["referenceStations"].value
+    station = {k: f.value for k, f in (stations[0] if stations else {}).items()}
+    return {
+        "type": d["gnssType"].value,
+        "geoid": d["geoidalSeparation"].value,
+        "stations": d["referenceStations"].value,
+        "station_type": station.get("referenceStationType"),
+        "station": station.get("referenceStationId"),
+        "age": station.get("ageOfDgnssCorrections"),
+    }
+
+
+@pytest.mark.parametrize(
+    ("talker", "quality", "gnss_type", "station"),
+    [
+        ("GP", FixQuality.GNSS, "GPS", None),  # no corrections: no station
+        ("GP", FixQuality.DGNSS, None, 7),  # GPS or GPS+SBAS/WAAS: not known
+        ("GL", FixQuality.RTK_FLOAT, "GLONASS", 7),
+        ("GA", FixQuality.PPS, "Galileo", None),
+        ("GN", FixQuality.RTK_FIXED, None, 7),  # several systems: which, GGA does not say
+        ("GB", FixQuality.RTK_FIXED, None, 7),  # BeiDou: not in canboat's GNS
+        ("GP", FixQuality.DEAD_RECKONING, None, None),  # the receiver's own dead reckoning
+        ("GP", FixQuality.NONE, None, None),
+        (None, FixQuality.RTK_FIXED, None, 7),
+    ],
+)
+def test_gnss_type_and_station_only_where_the_fix_says_them(
+    talker: str | None, quality: FixQuality, gnss_type: str | None, station: int | None
+) -> None:
+    sol = replace(FULL, talker=talker, fix_quality=quality, reference_station_id=7, age_s=None)
+    got = gnss_fields(sol)
+    assert (got["type"], got["station"], got["stations"]) == (
+        gnss_type,
+        station,
+        int(bool(station)),
+    )
+    assert got["geoid"] == pytest.approx(47.25, abs=0.01)
+    assert got["station_type"] is None  # the station's systems: not in NMEA 0183
+
+
+@pytest.mark.parametrize(
+    ("quality", "age"),
+    [(FixQuality.GNSS, None), (FixQuality.PPS, None), (FixQuality.DGNSS, 2.0),
+     (FixQuality.RTK_FLOAT, 2.0), (FixQuality.RTK_FIXED, 2.0)],
+)  # fmt: skip
+def test_age_of_corrections_only_for_a_corrected_fix(
+    quality: FixQuality, age: float | None
+) -> None:
+    """Receivers send an age (often 0.0) with an autonomous fix: it would claim corrections."""
+    got = gnss_fields(replace(FULL, fix_quality=quality, age_s=2.0, reference_station_id=None))
+    assert got["age"] == (None if age is None else pytest.approx(age, abs=0.01))
+    assert got["stations"] == int(age is not None)
+
+
+def test_geoid_separation_only_with_the_altitude() -> None:
+    assert gnss_fields(replace(FULL, alt_m=None))["geoid"] is None
+    assert gnss_fields(replace(FULL, geoid_sep_m=-31.44))["geoid"] == pytest.approx(-31.44)
+
+
+def solution_of(fix: GnssFix) -> Solution:
+    """The solution an engine reports with ``fix`` as its last: the fix fields as every engine
+    copies them, the receiver's position (lever arms are tested elsewhere)."""
+    common = common_fields(fix.t, fix, ImuHealth(fault_s=1.0))
+    return Solution(
+        **common, mode=Mode.NAVIGATING, lat_deg=fix.lat_deg, lon_deg=fix.lon_deg, alt_m=fix.alt_m
+    )
+
+
+@pytest.mark.parametrize(
+    ("name", "which", "expected"),
+    [  # real receivers (tests/data/nmea); expected 129029 fields as nmea2000 reads them
+        ("nmea-rtk.log", FixQuality.RTK_FIXED,  # $GNGGA,...,4,19,0.7,280.827,M,-31.442,M,5.8,0002
+         {"type": None, "geoid": -31.44, "stations": 1, "station": 2, "age": 5.8}),
+        ("rst39.log", FixQuality.DGNSS,  # $GPGGA,...,2,08,1.0,221.890,M,,,3,0138
+         {"type": None, "geoid": None, "stations": 1, "station": 138, "age": 3.0}),
+        ("ublox-f9p-hpnmea.log", FixQuality.DGNSS,  # $GNGGA,...,2,12,0.49,...,-21.350,M,,0278
+         {"type": None, "geoid": -21.35, "stations": 1, "station": 278, "age": None}),
+        ("ch-4711.log", "GL",  # $GLGGA,135654.997,...,1,04,02.3,165.6,M,14.6,M,,
+         {"type": "GLONASS", "geoid": 14.6, "stations": 0, "station": None, "age": None}),
+        ("telit-he910.log", FixQuality.GNSS,  # $GPGGA,...,1,05,1.75,109.0,M,,M,,0000
+         {"type": "GPS", "geoid": None, "stations": 0, "station": None, "age": None}),
+        ("telit-pls83-w.log", FixQuality.GNSS,  # $GPGGA and $GAGGA of one solution
+         {"type": None, "geoid": 50.0, "stations": 0, "station": None, "age": None}),
+    ],
+)  # fmt: skip
+def test_129029_of_real_receivers(
+    name: str, which: FixQuality | str, expected: dict[str, object]
+) -> None:
+    fixes, _ = decode_log(name)
+    fix = next(
+        f for f in fixes if (f.quality if isinstance(which, FixQuality) else f.talker) == which
+        and f.lat_deg is not None and f.num_sats is not None  # a GGA, with a position
+    )  # fmt: skip
+    got = gnss_fields(solution_of(fix))
+    assert got == pytest.approx(expected | {"station_type": None}, abs=0.006)
+
+
+def test_while_coasting_no_gnss_type_and_no_station_but_the_geoid() -> None:
+    """The guard makes a coasting solution dead reckoning: no satellites' systems, no
+    corrections; the geoid separation still holds metres from the last fix."""
+    coasting = OutputGuard().check(replace(FULL, mode=Mode.COASTING))
+    got = gnss_fields(coasting)
+    assert (got["type"], got["stations"], got["station"], got["age"]) == (None, 0, None, None)
+    assert got["geoid"] == pytest.approx(47.25, abs=0.01)
+
+
 def test_unknown_solution_fields_decode_as_missing_never_zero() -> None:
     d = decode(EMPTY)
     for message, fields in {
@@ -127,7 +261,15 @@ def test_unknown_solution_fields_decode_as_missing_never_zero() -> None:
         "vesselHeading": ("heading", "deviation", "variation"),
         "positionRapidUpdate": ("latitude", "longitude"),
         "cogSogRapidUpdate": ("cog", "sog"),
-        "gnssPositionData": ("latitude", "longitude", "altitude", "numberOfSvs", "hdop"),
+        "gnssPositionData": (
+            "latitude",
+            "longitude",
+            "altitude",
+            "gnssType",
+            "numberOfSvs",
+            "hdop",
+            "geoidalSeparation",
+        ),
     }.items():
         for field in fields:
             assert value(d, message, field) is None, (message, field)
@@ -248,14 +390,12 @@ def test_manufacturer_code_must_fit_11_bits() -> None:
 # encode of the DBC message, the fast-packet split as fast_packet.py's docstring states it,
 # and one can.Message per 8 bytes.
 
-DB = dbc.load(dbc.OUTPUT_DBC)
-
 
 def reference_payload(
     pgn: Pgn, solution: Solution, loop: LoopStatus, sid: int, manufacturer_code: int = 2046
 ) -> bytes:
     layout = LAYOUTS[pgn]
-    message = DB.get_message_by_name(layout.message)
+    message = encoded_message(layout.message)
     values = layout.build(solution, loop, sid)
     if layout.proprietary:
         values |= {"MANUFACTURER_CODE": manufacturer_code, "INDUSTRY_CODE": 2}
@@ -305,6 +445,9 @@ solutions = st.builds(
     num_sats=st.one_of(st.none(), st.integers(-1, 300)),
     hdop=maybe(st.floats(-400, 400)),
     age_s=maybe(st.floats(-1, 700)),
+    geoid_sep_m=maybe(st.floats(-200, 200)),
+    reference_station_id=st.one_of(st.none(), st.integers(-1, 5000)),
+    talker=st.one_of(st.none(), st.sampled_from(["GP", "GL", "GA", "GN", "GB", "BD", "gp"])),
     gnss_ok=st.booleans(),
     imu_ok=st.booleans(),
     stationary=st.booleans(),
@@ -337,7 +480,7 @@ def test_frames_equal_the_reference_encoding(
                 chunks = reference_fast_packet(payload, seq)
             else:
                 chunks = [payload]
-            priority = DB.get_message_by_name(LAYOUTS[pgn].message).frame_id >> 26 & 7
+            priority = encoded_message(LAYOUTS[pgn].message).frame_id >> 26 & 7
             frames = encoder.frames(pgn, solution, loop, sid)
             assert [bytes(f.data) for f in frames] == chunks
             for f in frames:

@@ -75,6 +75,9 @@ def test_full_epoch_every_field() -> None:
             sigma_e_m=0.012,
             sigma_d_m=0.030,
             mode="R",
+            geoid_sep_m=46.9,
+            reference_station_id=31,
+            talker="GN",
         )
     ]
     c = decoder.counters
@@ -85,7 +88,33 @@ def test_full_epoch_every_field() -> None:
 @pytest.mark.parametrize("talker", ["GP", "GN", "GL", "GA", "GB", "BD"])
 def test_any_talker(talker: str) -> None:
     fixes, _ = decode(stream(*epoch(talker=talker)))
-    assert [(f.quality, f.t, f.t_utc) for f in fixes] == [(FixQuality.RTK_FIXED, T0, T0)]
+    assert [(f.quality, f.t, f.t_utc, f.talker) for f in fixes] == [
+        (FixQuality.RTK_FIXED, T0, T0, talker)
+    ]
+
+
+@pytest.mark.parametrize(
+    ("tail", "expected"),
+    [
+        ("-31.442,M,5.8,0002", (-31.442, 5.8, 2)),
+        ("0.0,M,,1023", (0.0, None, 1023)),
+        (",M,,", (None, None, None)),
+        ("47.000,M,1.0,0000", (47.0, 1.0, 0)),
+    ],
+)
+def test_geoid_separation_age_and_reference_station_of_gga(
+    tail: str, expected: tuple[float | None, float | None, int | None]
+) -> None:
+    (fix,), _ = decode(stream(s(f"GGA,123519.00,4807.0380,N,01131.0000,E,2,08,0.9,545.4,M,{tail}")))
+    assert (fix.geoid_sep_m, fix.age_s, fix.reference_station_id) == expected
+    assert fix.alt_m == (None if expected[0] is None else 545.4 + expected[0])
+
+
+def test_a_malformed_reference_station_is_a_parse_error() -> None:
+    fixes, decoder = decode(
+        stream(s("GGA,123519.00,4807.0380,N,01131.0000,E,2,08,0.9,5.0,M,1.0,M,,00A2"))
+    )
+    assert (fixes, decoder.counters.parse_errors) == ([], 1)
 
 
 def test_epoch_emitted_with_its_last_sentence_once_the_set_is_learned() -> None:
@@ -135,7 +164,17 @@ def test_no_fix_yields_quality_none_with_empty_fields() -> None:
     fixes, decoder = decode(stream(*lines), t_host=5.0)
     assert (
         fixes
-        == [GnssFix(t=5.0, t_utc=None, quality=FixQuality.NONE, num_sats=0, hdop=99.99, mode="N")]
+        == [
+            GnssFix(
+                t=5.0,
+                t_utc=None,
+                quality=FixQuality.NONE,
+                num_sats=0,
+                hdop=99.99,
+                mode="N",
+                talker="GP",
+            )
+        ]
         * 2
     )
     assert decoder.counters.parse_errors == 0
@@ -152,6 +191,9 @@ def test_no_fix_hides_a_stale_position() -> None:
         None,
         None,
     )
+    # the separation is the fix's (as the height): 0.000 here is a placeholder; the station
+    # id is kept as sent (what it means is for the encoder, which knows the quality)
+    assert (fix.geoid_sep_m, fix.reference_station_id, fix.talker) == (None, 0, "GP")
     assert fix.t_utc == calendar.timegm((2016, 3, 28, 21, 24, 6))
 
 
@@ -167,6 +209,7 @@ def test_rmc_only_takes_quality_from_mode_and_vtg_fills_velocity() -> None:
         -(11 + 31 / 60),
     )
     assert (fix.sog_mps, fix.cog_rad, fix.alt_m) == (10.0, math.pi, None)
+    assert (fix.geoid_sep_m, fix.reference_station_id, fix.talker) == (None, None, None)  # GGA's
 
 
 @pytest.mark.parametrize("eol", ["\r\n", "\n", "\r", "\n\r"])
@@ -375,6 +418,10 @@ FIELDS = st.one_of(
 )
 TIMES = ["123519.00", "123519.10", "123519.20", "", "235959.99", "000000.00"]
 GOOD = [x for tod in TIMES for x in epoch(tod)] + [
+    *epoch("123519.30", talker="GP"),
+    *epoch("123519.40", talker="GA"),
+    s("GGA,123519.50,4807.0380,N,01131.0000,E,2,08,0.9,545.4,M,-31.442,M,,1023", "GL"),
+    s("GGA,123519.60,4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,,M,,", "BD"),
     s("GGA,,,,,,0,00,99.99,,,,,,", "GP"),
     s("RMC,,V,,,,,,,,,,N", "GP"),
     s("GSV,1,1,00", "GP"),
@@ -399,7 +446,11 @@ def nmea_lines(draw: st.DrawFn) -> str:
             fields = fields[: draw(st.integers(1, len(fields)))]  # cut short
         body = ",".join(fields)
     else:
-        talker = draw(st.sampled_from(["GN", "GP", "gp", "Gp", "pX", "PX", "P", "", "G_", "9z"]))
+        talker = draw(
+            st.sampled_from(
+                ["GN", "GP", "GL", "GA", "BD", "gp", "Gp", "pX", "PX", "P", "", "G_", "9z"]
+            )
+        )
         kind = draw(st.sampled_from(["GGA", "RMC", "VTG", "GST", "ZDA", "HDT", "GSV", "gga"]))
         body = talker + kind + "," + ",".join(draw(st.lists(FIELDS, max_size=16)))
     text = _with_checksum(body)

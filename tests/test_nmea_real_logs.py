@@ -43,7 +43,7 @@ def bad_checksums(data: bytes) -> int:
 
 
 def test_all_logs_are_here() -> None:
-    assert len(LOGS) == 32 and (DATA / "COPYING.gpsd").exists()
+    assert len(LOGS) == 34 and (DATA / "COPYING.gpsd").exists()
 
 
 @pytest.mark.parametrize("path", LOGS, ids=[p.name for p in LOGS])
@@ -79,8 +79,43 @@ def test_trimble_rtk_fixed_position() -> None:
         sog_mps=0.008 * KNOT_MPS,
         cog_rad=0.0,
         mode="D",
+        geoid_sep_m=-31.442,
+        reference_station_id=2,
+        talker="GN",
     )
     assert decoder.counters.by_type == {"GGA": 122, "RMC": 122}
+
+
+@pytest.mark.parametrize(
+    ("name", "expected"),
+    [  # (talker, quality, geoid separation, reference station): fixes, counted by hand (grep)
+        ("nmea-rtk.log", {("GN", 2, -31.442, 133): 32, ("GP", 2, -31.442, 133): 72,
+                          ("GN", 4, -31.442, 2): 18}),
+        ("ublox-f9p-hpnmea.log", {("GN", 2, -21.35, 278): 9}),
+        ("skytraq-dgps.log", {("GP", 2, -20.3, 0): 96}),
+        ("rst39.log", {("GP", 2, None, 138): 40, (None, 2, None, None): 4}),  # 4 without GGA
+        # a GLONASS-only epoch among GN ones; no fix: no separation (the receiver's 14.6 stays)
+        ("ch-4711.log", {("GN", 1, 14.6, None): 6, ("GL", 1, 14.6, None): 1,
+                         ("GP", 0, None, None): 7}),
+        # 0000 as station without corrections, no separation sent
+        ("telit-he910.log", {("GP", 1, None, 0): 186, ("GP", 1, None, None): 1}),
+    ],
+)  # fmt: skip
+def test_geoid_separation_reference_station_and_talker(
+    name: str, expected: dict[tuple[str | None, int, float | None, int | None], int]
+) -> None:
+    fixes, _ = decode(name)
+    got = Counter((f.talker, int(f.quality), f.geoid_sep_m, f.reference_station_id) for f in fixes)
+    assert got == expected
+
+
+def test_one_gga_per_system_names_no_talker() -> None:
+    """Telit PLS83-W sends $GPGGA (5 satellites) and $GAGGA (1) for one GPS+GLONASS+Galileo+
+    BeiDou solution ($GNGNS: 14, mode AAAAN): neither talker names the fix's systems."""
+    fixes, _ = decode("telit-pls83-w.log")
+    with_gga = [f for f in fixes if f.geoid_sep_m is not None]
+    assert len(with_gga) == 10 and {f.talker for f in fixes} == {None}
+    assert {(f.quality, f.geoid_sep_m) for f in with_gga} == {(FixQuality.GNSS, 50.0)}
 
 
 def test_zed_f9p_epoch_with_gst_and_zda() -> None:

@@ -149,7 +149,7 @@ def test_while_coasting_the_fix_fields_say_dead_reckoning(tmp_path: Path, engine
     outage = (60.0, 75.0)
     imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
     fixes = [
-        f
+        dataclasses.replace(f, talker="GP", geoid_sep_m=47.0, reference_station_id=23)
         for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
         if not outage[0] <= motion_time(f.t) < outage[1]
     ]
@@ -169,6 +169,19 @@ def test_while_coasting_the_fix_fields_say_dead_reckoning(tmp_path: Path, engine
     for m in gnss:
         assert m.fields["method"] in ("Estimated (DR) mode", 6), m.fields["method"]
         assert m.fields["numberOfSvs"] is None
+        # no satellites' systems, no corrections; the geoid is the place's, metres away
+        assert (m.fields["gnssType"], m.fields["referenceStations"]) == (None, 0)
+        assert m.fields["geoidalSeparation"] == pytest.approx(47.0)
+    before = [
+        m.fields
+        for m in decode_log(log)
+        if m.id == "gnssPositionData" and 40.0 <= motion_time(m.t) < outage[0]
+    ]
+    assert before
+    for f in before:
+        assert (f["gnssType"], f["geoidalSeparation"], f["referenceStations"]) == ("GPS", 47.0, 1)
+        stations = f["##list##"]
+        assert isinstance(stations, list) and stations[0]["referenceStationId"].value == 23
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])

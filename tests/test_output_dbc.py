@@ -4,6 +4,7 @@ import math
 import subprocess
 import sys
 from collections.abc import Mapping
+from dataclasses import replace
 from pathlib import Path
 
 import cantools
@@ -14,6 +15,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import dbc
+from drivers.samples import FixQuality
 from gateway.estimation.solution import Mode, Solution
 from gateway.isobus.frame_codec import (
     NOT_AVAILABLE,
@@ -27,6 +29,16 @@ from gateway.isobus.n2k_encode import LAYOUTS, LoopStatus, OutputEncoder
 from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, OutputScheduler
 
 DB = dbc.load(dbc.OUTPUT_DBC)
+PAYLOADS = dbc.load(dbc.OUTPUT_PAYLOADS_DBC)
+
+
+def encoded_message(name: str) -> Message:
+    """A message the encoder packs: a frame of the output DBC, or a reassembled payload."""
+    try:
+        return DB.get_message_by_name(name)
+    except KeyError:
+        return PAYLOADS.get_message_by_name(name)
+
 
 EXPECTED = {  # name: (priority, PGN, cycle time ms)
     "ATTITUDE": (3, 127257, 20),
@@ -57,29 +69,70 @@ def test_every_spec_frame_is_a_j1939_pg_with_priority_pgn_and_cycle(name: str) -
         assert frame_id.source == 0x1C
 
 
-def test_reassembled_129029_payload_has_its_own_placeholder_id() -> None:
-    payload = DB.get_message_by_name("GNSS_POSITION_DATA")
+def test_reassembled_129029_payload_has_the_id_of_its_frames_on_the_bus() -> None:
+    payload = PAYLOADS.get_message_by_name("GNSS_POSITION_DATA")
+    frames = DB.get_message_by_name("GNSS_POSITION_DATA_FP")
     assert payload.length == 47
-    assert payload.frame_id == 3 << 26 | (129029 | 1 << 17) << 8 | 0x1C  # extended data page
-    assert payload.comment is not None
-    assert "fast-packet" in payload.comment
+    assert payload.frame_id == frames.frame_id == 0x0DF8051C  # priority 3, PGN 129029, SA 0x1C
+    assert (payload.protocol, payload.cycle_time) == ("j1939", 100)
+    assert PAYLOADS.get_message_by_frame_id(0x0DF8051C) is payload
+    assert "GNSS_POSITION_DATA" not in {m.name for m in DB.messages}  # one message per id
+    assert payload.comment is not None and frames.comment is not None
+    assert "fast-packet" in payload.comment and "navgw_output_payloads.dbc" in frames.comment
 
 
 def test_reassembled_payload_decodes_with_cantools() -> None:
     sol = Solution(t=1_700_000_000.5, mode=Mode.NAVIGATING, lat_deg=48.1, lon_deg=11.6, alt_m=520.0)
     payload = OutputEncoder().payload(Pgn.GNSS_POSITION_DATA, sol, LoopStatus(), 9)
-    decoded = DB.get_message_by_name("GNSS_POSITION_DATA").decode(payload)
+    decoded = PAYLOADS.get_message_by_frame_id(0x0DF8051C).decode(payload)
     assert isinstance(decoded, dict)  # a plain message, not a container
     assert decoded["SID"] == 9
     assert decoded["LATITUDE"] == pytest.approx(48.1, abs=1e-12)
     assert decoded["ALTITUDE"] == pytest.approx(520.0, abs=1e-6)
-    assert str(decoded["METHOD"]) == "NOT_AVAILABLE"
-    assert str(decoded["HDOP"]) == "NOT_AVAILABLE"
+    for name in ("METHOD", "HDOP", "GNSS_TYPE", "GEOIDAL_SEPARATION", "REFERENCE_STATION_ID"):
+        assert str(decoded[name]) == "NOT_AVAILABLE", name
+    rtk = replace(
+        sol, fix_quality=FixQuality.RTK_FIXED, geoid_sep_m=-31.44, reference_station_id=2,
+        talker="GP", age_s=5.8,
+    )  # fmt: skip
+    decoded = PAYLOADS.get_message_by_name("GNSS_POSITION_DATA").decode(
+        OutputEncoder().payload(Pgn.GNSS_POSITION_DATA, rtk, LoopStatus(), 9)
+    )
+    assert isinstance(decoded, dict)
+    assert (str(decoded["GNSS_TYPE"]), str(decoded["METHOD"])) == ("GPS", "RTK_FIXED")
+    assert decoded["GEOIDAL_SEPARATION"] == pytest.approx(-31.44)
+    assert (decoded["REFERENCE_STATIONS"], decoded["REFERENCE_STATION_ID"]) == (1, 2)
+    assert str(decoded["REFERENCE_STATION_TYPE"]) == "NOT_AVAILABLE"
+    assert decoded["AGE_OF_DGNSS_CORRECTIONS"] == pytest.approx(5.8)
+
+
+def test_frames_on_the_bus_reassemble_into_the_payload_of_their_id() -> None:
+    """What a candump user does: the 7 frames of one 129029 (any source address), joined as
+    fast_packet.py's docstring says, decode by their frame id with the payloads DBC."""
+    sol = Solution(t=1_700_000_000.5, mode=Mode.NAVIGATING, lat_deg=48.1, lon_deg=11.6, alt_m=520.0)
+    sol = replace(sol, fix_quality=FixQuality.GNSS, talker="GL", geoid_sep_m=14.6)
+    loop = LoopStatus(source_address=0x85)
+    frames = OutputEncoder().frames(Pgn.GNSS_POSITION_DATA, sol, loop, 3)
+    (frame_id,) = {f.arbitration_id for f in frames}
+    assert frame_id == 0x0DF80585
+    assert DB.get_message_by_frame_id(frame_id).name == "GNSS_POSITION_DATA_FP"
+    joined = bytes(frames[0].data[2:]) + b"".join(bytes(f.data[1:]) for f in frames[1:])
+    decoded = PAYLOADS.get_message_by_frame_id(frame_id).decode(joined[: frames[0].data[1]])
+    assert isinstance(decoded, dict)
+    assert (decoded["SID"], str(decoded["GNSS_TYPE"]), str(decoded["METHOD"])) == (
+        3,
+        "GLONASS",
+        "GNSS_FIX",
+    )
+    assert decoded["GEOIDAL_SEPARATION"] == pytest.approx(14.6)
+    assert decoded["REFERENCE_STATIONS"] == 0
 
 
 def test_every_encoded_message_is_in_the_dbc() -> None:
-    names = {m.name for m in DB.messages}
-    assert {layout.message for layout in LAYOUTS.values()} <= names
+    frames = {layout.message for layout in LAYOUTS.values() if not layout.fast_packet}
+    payloads = {layout.message for layout in LAYOUTS.values() if layout.fast_packet}
+    assert frames <= {m.name for m in DB.messages}
+    assert payloads <= {m.name for m in PAYLOADS.messages}
 
 
 def test_cantools_decode_reads_a_candump_log_of_the_output(tmp_path: Path) -> None:
@@ -210,7 +263,7 @@ def physical_values(signal: Signal) -> st.SearchStrategy[object]:
 
 @st.composite
 def message_and_values(draw: st.DrawFn) -> tuple[Message, dict[str, object]]:
-    message = DB.get_message_by_name(draw(st.sampled_from(ENCODED)))
+    message = encoded_message(draw(st.sampled_from(ENCODED)))
     values = {
         s.name: draw(physical_values(s))
         for s in message.signals
@@ -219,7 +272,7 @@ def message_and_values(draw: st.DrawFn) -> tuple[Message, dict[str, object]]:
     return message, values
 
 
-CODECS = {name: FrameCodec(DB.get_message_by_name(name)) for name in ENCODED}
+CODECS = {name: FrameCodec(encoded_message(name)) for name in ENCODED}
 
 
 def assert_packs_as_cantools(message: Message, values: Mapping[str, object]) -> None:
@@ -258,7 +311,7 @@ def test_compiled_packers_equal_cantools_field_by_field(
 @pytest.mark.parametrize("name", ENCODED)
 def test_compiled_packers_at_every_boundary(name: str) -> None:
     """Each field at and around its range's ends and rounding points, the others in range."""
-    message = DB.get_message_by_name(name)
+    message = encoded_message(name)
     fields = [s for s in message.signals if not s.name.startswith(RESERVED_PREFIX)]
     for signal in fields:
         for x in [*boundary_values(signal), None, math.nan, math.inf, -math.inf]:

@@ -25,6 +25,13 @@ from gateway.config.config_schema import (
 from gateway.estimation.ekf.ekf_config import EkfConfig
 from gateway.estimation.epoch_clock import EpochTime
 from gateway.estimation.observer.observer_config import ObserverConfig
+from gateway.isobus.address_claim import DeviceClass, NameFunction
+from gateway.isobus.device_info import (
+    DEFAULT_LOAD_EQUIVALENCY,
+    DEFAULT_MODEL_ID,
+    DEFAULT_PRODUCT_CODE,
+    text_problem,
+)
 from gateway.isobus.j1939 import DEFAULT_MANUFACTURER_CODE, DEFAULT_SOURCE_ADDRESS, Pgn
 from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, MAX_RATE_HZ
 
@@ -131,7 +138,7 @@ class GnssSection:
 
 @dataclass(frozen=True)
 class IsobusSection:
-    """[isobus]: the output bus and the ISO 11783-5 NAME the gateway claims with."""
+    """[isobus]: the output bus, the ISO 11783-5 NAME it claims with, its product information."""
 
     interface: str | None = field(
         default=None, metadata=_doc("python-can interface; unset: [imu]'s")
@@ -150,6 +157,30 @@ class IsobusSection:
     ecu_instance: int = field(default=0, metadata=_doc("NAME ECU instance", **in_range(0, 7)))
     function_instance: int = field(
         default=0, metadata=_doc("NAME function instance", **in_range(0, 31))
+    )
+    device_function: int = field(
+        default=NameFunction.OWNSHIP_POSITION_GNSS,
+        metadata=_doc("NAME function (145: Ownship Position (GNSS))", **in_range(0, 255)),
+    )
+    device_class: int = field(
+        default=DeviceClass.NAVIGATION,
+        metadata=_doc("NAME device class / vehicle system (60: Navigation)", **in_range(0, 127)),
+    )
+    product_code: int = field(
+        default=DEFAULT_PRODUCT_CODE,
+        metadata=_doc("PGN 126996 product code (the manufacturer's)", **in_range(0, 65532)),
+    )
+    model_id: str = field(
+        default=DEFAULT_MODEL_ID,
+        metadata=_doc("PGN 126996 model id, ASCII, at most 32 characters", check=text_problem),
+    )
+    model_version: str = field(
+        default="",
+        metadata=_doc("PGN 126996 model (hardware) version, ASCII, <= 32", check=text_problem),
+    )
+    load_equivalency: int = field(
+        default=DEFAULT_LOAD_EQUIVALENCY,
+        metadata=_doc("PGN 126996 current drawn from the bus, x 50 mA", **in_range(0, 252)),
     )
 
 

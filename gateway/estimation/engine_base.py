@@ -103,6 +103,12 @@ def common_fields(t: float | None, fix: GnssFix | None, imu: ImuHealth) -> dict[
     }
     if fix is not None:
         common.update(
-            fix_quality=fix.quality, num_sats=fix.num_sats, hdop=fix.hdop, age_s=fix.age_s
+            fix_quality=fix.quality,
+            num_sats=fix.num_sats,
+            hdop=fix.hdop,
+            age_s=fix.age_s,
+            geoid_sep_m=fix.geoid_sep_m,
+            reference_station_id=fix.reference_station_id,
+            talker=fix.talker,
         )
     return common

@@ -62,6 +62,9 @@ class Solution:
     num_sats: int | None = None
     hdop: float | None = None
     age_s: float | None = None
+    geoid_sep_m: float | None = None  # at the antenna, metres away: the reference point's too
+    reference_station_id: int | None = None  # as the receiver sent it
+    talker: str | None = None  # GGA talker id: the satellite systems of the fix
     gnss_ok: bool = False
     imu_ok: bool = False
     imu_alarm: bool = False

@@ -4,9 +4,11 @@ Live service, replay and demo all drive this one class; only the sources of inpu
 time differ. Per IMU sample: propagate the engine, advance the address claim, and when a
 PGN is due (and the address is held) pass the current solution through the
 :class:`~gateway.fusion.output_guard.OutputGuard` and encode it. GNSS fixes go to the engine as they
-come; frames received from the ISOBUS go to the address claim. While the claim has seen a
-clone of us (our NAME, or frames from our address that we did not send), NAVGW_STATUS says
-DEGRADED.
+come; frames received from the ISOBUS go to the address claim, then to the
+:class:`~gateway.isobus.network.NetworkManager` (requests, commanded address), which also
+sends the heartbeat (looked at per IMU sample and poll with one comparison). While the claim
+has seen a clone of us (our NAME, or frames from our address that we did not send),
+NAVGW_STATUS says DEGRADED.
 
 Frames come back as iterators that encode as they are taken: a caller that sends while it
 iterates puts the attitude on the bus first (see :meth:`OutputScheduler.frames`).
@@ -31,6 +33,7 @@ from collections import deque
 from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass, replace
 from functools import partial
+from importlib import metadata
 from itertools import chain
 
 import can
@@ -41,8 +44,10 @@ from gateway.estimation.solution import Estimator, Mode, Solution
 from gateway.fusion.engines import epoch_clock, make_engine
 from gateway.fusion.output_guard import OutputGuard
 from gateway.isobus.address_claim import AddressClaimer, Name
+from gateway.isobus.device_info import ProductInfo
 from gateway.isobus.j1939 import DEFAULT_SOURCE_ADDRESS, Pgn
 from gateway.isobus.n2k_encode import LoopStatus, OutputEncoder
+from gateway.isobus.network import NetworkManager
 from gateway.isobus.output_scheduler import OutputScheduler
 
 log = logging.getLogger(__name__)
@@ -64,7 +69,7 @@ NOTHING: Iterator[can.Message] = iter(())
 @dataclass(frozen=True, slots=True)
 class BusFrame:
     """An ISOBUS frame from a recording (another node's address claim or request), at the
-    time it was received: replay feeds it to the claimer as the live service does."""
+    time it was received: replay feeds it to the network as the live service does."""
 
     t: float
     msg: can.Message
@@ -91,6 +96,7 @@ class FusionCore:
         engine: Estimator,
         scheduler: OutputScheduler,
         claimer: AddressClaimer,
+        network: NetworkManager,
         imu_counters: ImuCounters | None = None,
         make_engine: Callable[[], Estimator] | None = None,
     ) -> None:
@@ -98,6 +104,7 @@ class FusionCore:
         self._make_engine = make_engine  # for a restart; None: the engine carries on
         self.scheduler = scheduler
         self.claimer = claimer
+        self.network = network
         self.guard = OutputGuard()
         self.stats = FusionStats()
         self._imu_counters = imu_counters or ImuCounters()
@@ -111,27 +118,41 @@ class FusionCore:
     def from_config(
         cls, config: GatewayConfig, imu_counters: ImuCounters | None = None
     ) -> FusionCore:
-        """Engine, scheduler and claimer as the config says."""
+        """Engine, scheduler, claimer and network as the config says."""
         clock = epoch_clock(config)  # one for every engine of this core (restarts included)
+        isobus = config.isobus
         name = Name(
-            identity_number=config.isobus.identity_number,
-            manufacturer_code=config.isobus.manufacturer_code,
-            ecu_instance=config.isobus.ecu_instance,
-            function_instance=config.isobus.function_instance,
+            identity_number=isobus.identity_number,
+            manufacturer_code=isobus.manufacturer_code,
+            ecu_instance=isobus.ecu_instance,
+            function_instance=isobus.function_instance,
+            function=isobus.device_function,
+            vehicle_system=isobus.device_class,
+        )
+        scheduler = OutputScheduler(
+            config.output.rates_hz(), OutputEncoder(isobus.manufacturer_code)
+        )
+        # Seeded by the NAME: replay is deterministic, and two units differ in identity.
+        claimer = AddressClaimer(
+            name,
+            isobus.preferred_address,
+            random.Random(name.value()),
+            reserved=(config.imu.bridge_source_address,),
+        )
+        product = ProductInfo(
+            product_code=isobus.product_code,
+            model_id=isobus.model_id,
+            software_version=metadata.version("navgw"),
+            model_version=isobus.model_version,
+            serial_code=str(isobus.identity_number),
+            load_equivalency=isobus.load_equivalency,
         )
         return cls(
             engine=make_engine(config, clock),
             make_engine=partial(make_engine, config, clock),
-            scheduler=OutputScheduler(
-                config.output.rates_hz(), OutputEncoder(config.isobus.manufacturer_code)
-            ),
-            # Seeded by the NAME: replay is deterministic, and two units differ in identity.
-            claimer=AddressClaimer(
-                name,
-                config.isobus.preferred_address,
-                random.Random(name.value()),
-                reserved=(config.imu.bridge_source_address,),
-            ),
+            scheduler=scheduler,
+            claimer=claimer,
+            network=NetworkManager(claimer, product, periodic=scheduler.rates_hz),
             imu_counters=imu_counters,
         )
 
@@ -164,7 +185,10 @@ class FusionCore:
                 )  # fmt: skip
                 self._last_saturation_log = sample.t
             self._saturated = True
-            return self._counted(chain(self.claimer.poll(sample.t), self._fault(sample.t)))
+            polled = self.claimer.poll(sample.t)
+            if sample.t >= self.network.next_heartbeat_t:
+                polled += self._heartbeat(sample.t)
+            return self._counted(chain(polled, self._fault(sample.t)))
         last = self._last_sample
         gap = last is not None and abs(sample.t - last.t) >= RESTART_GAP_S
         if (gap or self._saturated) and self._make_engine is not None:
@@ -180,6 +204,8 @@ class FusionCore:
         self._last_sample = sample
         self.engine.imu(sample)
         polled = self.claimer.poll(sample.t)
+        if sample.t >= self.network.next_heartbeat_t:  # one comparison per sample
+            polled += self._heartbeat(sample.t)
         if not (self.claimer.claimed and self.scheduler.is_due(sample.t)):
             return self._counted(polled) if polled else NOTHING  # most samples send nothing
         sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
@@ -187,9 +213,10 @@ class FusionCore:
         return self._counted(chain(polled, frames))
 
     def on_bus_frame(self, msg: can.Message, now: float) -> Iterator[can.Message]:
-        """A frame received from the ISOBUS (address claims, requests, frames from our
-        address), not our own echo."""
-        return self._counted(self.claimer.on_frame(msg, now))
+        """A frame received from the ISOBUS (address claims, requests, transport frames,
+        frames from our address), not our own echo: the claimer first, then the network."""
+        claimed = self.claimer.on_frame(msg, now)
+        return self._counted(claimed + self.network.on_frame(msg, now))
 
     def _attributable(self, sol: Solution, now: float) -> Solution:
         """``sol``, DEGRADED (or worse) while another node recently claimed our NAME or sent
@@ -201,7 +228,14 @@ class FusionCore:
 
     def poll(self, now: float) -> Iterator[can.Message]:
         """Advance timers without an input (the live loop calls this when the IMU is silent)."""
-        return self._counted(chain(self.claimer.poll(now), self._silent_status(now)))
+        polled = self.claimer.poll(now)
+        if now >= self.network.next_heartbeat_t:
+            polled += self._heartbeat(now)
+        return self._counted(chain(polled, self._silent_status(now)))
+
+    def _heartbeat(self, now: float) -> list[can.Message]:
+        """The heartbeat that is due, equipment status FAULT while NAVGW_STATUS says FAULT."""
+        return self.network.heartbeat(now, fault=self._told_mode is Mode.FAULT)
 
     def _silent_status(self, now: float) -> Iterable[can.Message]:
         """NAVGW_STATUS alone, FAULT, when no IMU sample has come for IMU_SILENT_S."""

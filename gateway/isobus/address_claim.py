@@ -14,6 +14,11 @@ random byte, as AgIsoStack++ does), claim of the preferred address, 250 ms conte
 claimed. A competing claim for our address is won by the lower NAME: if ours is lower we
 re-send our claim; if not we claim the lowest free address of the self-configurable range
 128-247 (addresses claimed by others are tracked), or send cannot-claim from 254 and stop.
+A Commanded Address (PGN 65240, reassembled by the caller) for our NAME moves us: we claim
+the commanded address (ISO 11783-5), unless a node with a lower NAME holds it or it is
+reserved (the claim could only lose, and send us to 128-247), and are silent for the 250 ms
+of contention, as after any claim. After a move, nothing is sent from the old address: every
+frame takes its source from :attr:`AddressClaimer.address` when it is built.
 Addresses given as ``reserved`` (the IMU bridge's, which sends on the same bus without
 claiming) are never taken. Requests for 60928 (global or to our address) are answered. Every
 change of address is logged.
@@ -70,10 +75,27 @@ CONFLICT_LOG_S = 10.0  # at most one warning per kind of conflict this often
 RECLAIM_INTERVAL_S = 1.0  # an address violation is answered with our claim this often at most
 
 
-class NameFunction(IntEnum):
-    """ISO 11783-1 / J1939 function codes (0-127 mean the same in every industry group)."""
+class DeviceClass(IntEnum):
+    """NMEA 2000 device class (the NAME's vehicle system field; canboat DEVICE_CLASS)."""
 
-    VEHICLE_NAVIGATION = 23  # "system associated with the vehicle's physical location"
+    NAVIGATION = 60
+
+
+class NameFunction(IntEnum):
+    """NAME function codes: ISO 11783-1 / J1939 global ones (0-127) and the NMEA 2000 ones
+    of class Navigation (128-255, canboat DEVICE_FUNCTION).
+
+    navgw sends :attr:`OWNSHIP_POSITION_GNSS` in class Navigation. The global 23 (vehicle
+    navigation) is right for J1939 but canboat and the ``nmea2000`` package read the function
+    through the class and named class 0 / function 23 "Reserved". Of class 60's functions,
+    145 "Ownship Position (GNSS)" is what navgw replaces on the bus (a GNSS receiver: its
+    positions are what most consumers select it for, and displays list position sources by
+    it); 140 "Ownship Attitude" would hide it from those lists, and 175 "Integrated Navigation
+    System" from both. ``[isobus] device_function/device_class`` set another pair (e.g. 23/0
+    on a bus that only ISO 11783 tools read).
+    """
+
+    OWNSHIP_POSITION_GNSS = 145  # class 60
 
 
 class ClaimState(Enum):
@@ -94,8 +116,8 @@ class Name:
     manufacturer_code: int = DEFAULT_MANUFACTURER_CODE  # 11 bits
     ecu_instance: int = 0  # 3 bits
     function_instance: int = 0  # 5 bits
-    function: int = NameFunction.VEHICLE_NAVIGATION  # 8 bits
-    vehicle_system: int = 0  # 7 bits, 0 = non-specific system
+    function: int = NameFunction.OWNSHIP_POSITION_GNSS  # 8 bits
+    vehicle_system: int = DeviceClass.NAVIGATION  # 7 bits, NMEA 2000 device class
     vehicle_system_instance: int = 0  # 4 bits
     industry_group: IndustryGroup = IndustryGroup.AGRICULTURE
     arbitrary_address_capable: bool = True
@@ -204,6 +226,34 @@ class AddressClaimer:
             return out + self._answer_request(now)
         return out
 
+    def command(self, address: int, commander: int, now: float) -> list[can.Message]:
+        """A Commanded Address for our NAME from ``commander``: claim ``address`` (see the
+        module docstring); the claim, or nothing when the command is refused."""
+        if self.state not in (ClaimState.CLAIMING, ClaimState.CLAIMED, ClaimState.FAILED):
+            log.warning("address claim: commanded address before our claim ignored")
+            return []
+        held_by = self._others.get(address)
+        refusal = None
+        if not 0 <= address < NULL_ADDRESS:
+            refusal = "not an address a node can claim"
+        elif address in self._reserved:
+            refusal = "reserved (used on the bus without a claim)"
+        elif held_by is not None and held_by < self._name:
+            refusal = f"held by NAME 0x{held_by:016X}, lower than ours"
+        if refusal is not None:
+            log.warning(
+                "address claim: %s commands us to 0x%02X: %s; keeping %s",
+                _address_text(commander), address, refusal, _address_text(self.address),
+            )  # fmt: skip
+            return []
+        if address == self.address:
+            return [self._claim_message(address, now)]
+        log.warning(
+            "address claim: %s commands us from %s to 0x%02X; claiming it",
+            _address_text(commander), _address_text(self.address), address,
+        )  # fmt: skip
+        return self._claim(address, now)
+
     def _on_claim(self, source: int, name: int, now: float) -> list[can.Message]:
         if name == self._name:
             self._on_name_conflict(source, now)
@@ -267,6 +317,12 @@ class AddressClaimer:
         taken = self._others.keys() | self._reserved
         free = [a for a in SELF_CONFIGURABLE_ADDRESSES if a not in taken]
         if self._arbitrary and free:
+            if self.address is not None:
+                log.warning(
+                    "address claim: 0x%02X lost to NAME 0x%016X (lower than ours, 0x%016X); "
+                    "claiming 0x%02X",
+                    self.address, self._others.get(self.address, 0), self._name, free[0],
+                )  # fmt: skip
             return self._claim(free[0], now)
         log.warning(
             "address claim: no address free in %d-%d (in use: %s); sending cannot-claim and "
@@ -279,13 +335,6 @@ class AddressClaimer:
         return [self._claim_message(NULL_ADDRESS, now)]  # cannot claim
 
     def _claim(self, address: int, now: float) -> list[can.Message]:
-        if self.address is not None and address != self.address:
-            holder = self._others.get(self.address)
-            log.warning(
-                "address claim: 0x%02X lost to NAME 0x%016X (lower than ours, 0x%016X); "
-                "claiming 0x%02X",
-                self.address, holder or 0, self._name, address,
-            )  # fmt: skip
         self.state = ClaimState.CLAIMING
         self.address = address
         self._deadline = now + CONTENTION_S

@@ -23,10 +23,18 @@ PDU2_MIN_FORMAT = 240  # PDU format byte from which a PGN is broadcast only (PDU
 
 
 class Pgn(IntEnum):
-    """Parameter group numbers of SPEC 4 (and the two network-management ones)."""
+    """Parameter group numbers of SPEC 4 and of network management (ISO 11783-3/-5, NMEA 2000)."""
 
+    ISO_ACKNOWLEDGEMENT = 59392
     ISO_REQUEST = 59904
+    TP_DATA_TRANSFER = 60160
+    TP_CONNECTION_MANAGEMENT = 60416
     ADDRESS_CLAIM = 60928
+    COMMANDED_ADDRESS = 65240
+    PGN_LIST = 126464
+    HEARTBEAT = 126993
+    PRODUCT_INFORMATION = 126996
+    CONFIGURATION_INFORMATION = 126998
     ATTITUDE = 127257
     RATE_OF_TURN = 127251
     VESSEL_HEADING = 127250

@@ -53,6 +53,14 @@ class GnssMethod(IntEnum):
     SIMULATE = 8
 
 
+class GnssType(IntEnum):
+    """canboat GNS, 129029 GNSS type and reference station type (only the values navgw sends)."""
+
+    GPS = 0
+    GLONASS = 1
+    GALILEO = 8
+
+
 class GnssIntegrity(IntEnum):
     """canboat GNS_INTEGRITY, 129029 integrity: navgw does no RAIM."""
 
@@ -71,6 +79,18 @@ GNSS_METHOD_OF_FIX = {
     FixQuality.MANUAL: GnssMethod.MANUAL_INPUT,
     FixQuality.SIMULATION: GnssMethod.SIMULATE,
 }
+
+#: GGA talker id to the 129029 GNSS type, for the talkers that name one system GNS lists
+#: (GN, several systems, does not say which; BeiDou (GB, BD), QZSS and NavIC are not in GNS).
+GNSS_TYPE_OF_TALKER = {"GP": GnssType.GPS, "GL": GnssType.GLONASS, "GA": GnssType.GALILEO}
+#: Fix qualities whose satellite systems the talker names alone. Not DGNSS: its corrections
+#: may come from SBAS, which GNS counts in the type ("GPS+SBAS/WAAS"); nor dead reckoning,
+#: no fix, manual or simulated positions.
+TYPED_BY_TALKER = frozenset(
+    {FixQuality.GNSS, FixQuality.PPS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT}
+)
+#: Fix qualities computed with a reference station's corrections: GGA's station id is theirs.
+CORRECTED = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
 
 
 @dataclass(frozen=True, slots=True)
@@ -142,9 +162,21 @@ def cog_sog_rapid(s: Solution, _: LoopStatus, sid: int) -> Values:
 
 
 def gnss_position(s: Solution, _: LoopStatus, sid: int) -> Values:
-    """129029 payload: UTC date/time of the solution, full-precision position, fix info."""
+    """129029 payload: UTC date/time of the solution, full-precision position, fix info.
+
+    Each fix field describes the position sent (the output guard makes a coasting one dead
+    reckoning): the GNSS type from the talker only where it is one system and the quality
+    says the talker's systems are all there is; the station id only for a corrected fix; the
+    geoid separation with the altitude. The age of corrections only for a corrected fix too
+    (an autonomous fix's "0.0" would claim corrections one has not got). The reference station
+    type (the station's systems) is nowhere in NMEA 0183: not available."""
     days, ticks = divmod(round(s.t / TIME_LSB_S), round(SECONDS_PER_DAY / TIME_LSB_S))
-    method = None if s.fix_quality is None else GNSS_METHOD_OF_FIX[s.fix_quality]
+    quality = s.fix_quality
+    method = None if quality is None else GNSS_METHOD_OF_FIX[quality]
+    gnss_type = GNSS_TYPE_OF_TALKER.get(s.talker or "") if quality in TYPED_BY_TALKER else None
+    corrected = quality in CORRECTED
+    station = s.reference_station_id if corrected else None
+    age = s.age_s if corrected else None  # some receivers send 0.0 without corrections
     return {
         "SID": sid,
         "DATE": days,
@@ -152,18 +184,19 @@ def gnss_position(s: Solution, _: LoopStatus, sid: int) -> Values:
         "LATITUDE": s.lat_deg,
         "LONGITUDE": s.lon_deg,
         "ALTITUDE": s.alt_m,
-        "GNSS_TYPE": None,
+        "GNSS_TYPE": gnss_type,
         "METHOD": method,
         "INTEGRITY": GnssIntegrity.NO_CHECKING,
         "NUMBER_OF_SVS": s.num_sats,
         "HDOP": s.hdop,
         "PDOP": None,
-        "GEOIDAL_SEPARATION": None,
-        # one reference-station set carries the age of corrections; without it the set is padding
-        "REFERENCE_STATIONS": 0 if s.age_s is None else 1,
+        "GEOIDAL_SEPARATION": None if s.alt_m is None else s.geoid_sep_m,
+        # one reference-station set: the station and age of corrections; without either the
+        # set is padding
+        "REFERENCE_STATIONS": 0 if age is None and station is None else 1,
         "REFERENCE_STATION_TYPE": None,
-        "REFERENCE_STATION_ID": None,
-        "AGE_OF_DGNSS_CORRECTIONS": s.age_s,
+        "REFERENCE_STATION_ID": station,
+        "AGE_OF_DGNSS_CORRECTIONS": age,
     }
 
 
@@ -203,7 +236,7 @@ def status(s: Solution, loop: LoopStatus, __: int) -> Values:
 class Layout:
     """How one PGN is built: its DBC message, value builder, and header and SID use."""
 
-    message: str
+    message: str  # in the output DBC; a fast-packet one's payload in the payloads DBC
     build: Builder
     proprietary: bool = False
     fast_packet: bool = False
@@ -237,12 +270,20 @@ class OutputEncoder:
         self,
         manufacturer_code: int = DEFAULT_MANUFACTURER_CODE,
         database: cantools.database.can.Database | None = None,
+        payloads: cantools.database.can.Database | None = None,
     ) -> None:
+        """``database``, ``payloads``: the output DBC and its payloads DBC (fast-packet PGNs'
+        messages are their reassembled payloads), the shipped ones by default."""
         if not 0 <= manufacturer_code < 1 << 11:
             raise ValueError(f"manufacturer code {manufacturer_code} is not 0-2047 (11 bits)")
-        db = database or dbc.load(dbc.OUTPUT_DBC)
+        frames_db = database or dbc.load(dbc.OUTPUT_DBC)
+        payloads_db = payloads or dbc.load(dbc.OUTPUT_PAYLOADS_DBC)
         self._codecs = {
-            pgn: FrameCodec(db.get_message_by_name(layout.message))
+            pgn: FrameCodec(
+                (payloads_db if layout.fast_packet else frames_db).get_message_by_name(
+                    layout.message
+                )
+            )
             for pgn, layout in LAYOUTS.items()
         }
         self._header: Values = {

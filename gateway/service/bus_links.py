@@ -3,8 +3,9 @@
 ``[imu]`` names the bus of the IMU bridge and ``[isobus]`` the output bus; when ``[isobus]``
 leaves interface/channel unset (or names the same bus) both roles share one python-can bus
 object and one reader, and received frames are dispatched by id. The ISOBUS role receives
-address claims (PGN 60928), requests (PGN 59904) and every frame from our own address (its
-filters follow the address): a frame from our address that we did not send is a clone or a
+address claims (PGN 60928), requests (PGN 59904), transport frames (PGNs 60416 and 60160: a
+commanded address comes by BAM) and every frame from our own address (its filters follow the
+address): a frame from our address that we did not send is a clone or a
 spoofer, which the address claim must see.
 
 Echo: some interfaces (``udp_multicast``, python-can ``virtual`` and socketcan with
@@ -31,8 +32,14 @@ from gateway.isobus.j1939 import Pgn
 
 #: Receive filter on the PDU format byte (and DP/EDP) of a PDU1 PGN: any source, any destination.
 PDU1_MASK = 0x03FF0000
-#: The PGNs the ISOBUS role receives from any node: address claim and request.
-CLAIM_PGNS = (Pgn.ADDRESS_CLAIM, Pgn.ISO_REQUEST)
+#: The PGNs the ISOBUS role receives from any node: address claim, request, and the transport
+#: protocol's that carry a commanded address.
+CLAIM_PGNS = (
+    Pgn.ADDRESS_CLAIM,
+    Pgn.ISO_REQUEST,
+    Pgn.TP_CONNECTION_MANAGEMENT,
+    Pgn.TP_DATA_TRANSFER,
+)
 #: Receive filter on the source address byte of a 29-bit id: any PGN from one address.
 SOURCE_MASK = 0xFF
 #: errnos of a send or receive that mean the interface is gone or down, not just busy.

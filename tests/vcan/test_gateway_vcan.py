@@ -5,6 +5,10 @@ vcan0 by ``canplayer`` and the NMEA log onto a pty; the gateway reads both and s
 vcan1 (a separate ISOBUS); ``candump -L`` records vcan1. During the run a competing
 node's claim arrives by ``cansend``, then a request for address claim, then vcan1 goes
 down and up again. The tests read what the recording and the gateway said.
+
+A second, short session tests network management (issue 15): requests for 126996 (global)
+and 126464 (to us), for unsupported PGNs (to us: NAK; global: none), competing claims with a
+higher and a lower NAME, a node sending from our address, and a commanded address by BAM.
 """
 
 from __future__ import annotations
@@ -15,13 +19,15 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
+from importlib import metadata
 from pathlib import Path
 
 import can
 import numpy as np
 import pytest
+from nmea2000 import NMEA2000Decoder, NMEA2000Message
 
 from drivers.logs.candump import CandumpWriter, read_candump
 from drivers.logs.nmea_log import read_nmea_log
@@ -304,3 +310,213 @@ def test_interface_down_and_up_is_survived_and_sending_resumes(session: Session)
     resumed = [m for m in read_candump(session.recordings[1]) if m.arbitration_id >> 8 == 0x09F113]
     assert len(resumed) > 50, _said(session)  # attitude frames again after vcan1 came back
     assert any(line.startswith("STATUS=") for line in session.notify)
+
+
+# --- network management on vcan (issue 15): a second, short session ------------------------
+#
+# The gateway alone on vcan1 (no IMU input: it claims, answers and sends NAVGW_STATUS FAULT),
+# driven step by step: each ``cansend`` waits for the gateway's reaction on the bus, with a
+# timeout a slow guest stays well within. ``candump -L`` records vcan1; the tests decode the
+# recording with the nmea2000 package.
+
+TOOL = 0x40
+NM_STEP_TIMEOUT_S = 30.0  # the emulated guest answers in well under a second when unloaded
+UNSUPPORTED_GLOBAL, UNSUPPORTED_TO_US = 130306, 130311  # wind data, environmental parameters
+COMMANDED_TO = 0x30
+
+
+@dataclass
+class NetworkSession:
+    """What the network-management run left behind."""
+
+    recording: Path
+    name: int  # the gateway's NAME
+    marks: dict[str, float]  # wall time at which each step's frames were sent
+    stderr: str
+    returncode: int
+
+
+def _cansend(*frames: str) -> None:
+    for frame in frames:
+        subprocess.run(["cansend", "vcan1", frame], check=True)
+
+
+def _frame_text(can_id: int, data: bytes) -> str:
+    return f"{can_id:08X}#{data.hex().upper()}"
+
+
+def _request(pgn: int, destination: int) -> str:
+    return _frame_text(0x18EA0000 | destination << 8 | TOOL, pgn.to_bytes(3, "little"))
+
+
+def _commanded_bam(name: int, address: int) -> list[str]:
+    payload = name.to_bytes(8, "little") + bytes([address])
+    cm = bytes([32, 9, 0, 2, 0xFF]) + (65240).to_bytes(3, "little")
+    dt = [bytes([1]) + payload[:7], bytes([2]) + payload[7:] + b"\xff" * 5]
+    return [_frame_text(0x1CECFF00 | TOOL, cm), *(_frame_text(0x1CEBFF00 | TOOL, d) for d in dt)]
+
+
+Test = Callable[[can.Message], bool]
+
+
+def _id_is(can_id: int, data: bytes | None = None) -> Test:
+    """A test for a frame with ``can_id`` (and ``data``, if given)."""
+    return lambda m: m.arbitration_id == can_id and (data is None or bytes(m.data) == data)
+
+
+class _Watch:
+    """The gateway's frames on vcan1 as they come (python-can), to pace the steps."""
+
+    def __init__(self) -> None:
+        self.bus = can.Bus(interface="socketcan", channel="vcan1")
+        self.seen: list[can.Message] = []
+
+    def wait(self, what: str, test: Test, timeout: float = NM_STEP_TIMEOUT_S) -> can.Message:
+        """The first frame from now on for which ``test(msg)`` is true."""
+        end = time.monotonic() + timeout
+        while (left := end - time.monotonic()) > 0:
+            msg = self.bus.recv(min(left, 0.5))
+            if msg is not None:
+                self.seen.append(msg)
+                if test(msg):
+                    return msg
+        raise AssertionError(f"no {what} within {timeout} s")
+
+
+@pytest.fixture(scope="module")
+def network_session(vcan0: str, tmp_path_factory: pytest.TempPathFactory) -> NetworkSession:
+    from gateway.config.gateway_config import load_config
+    from gateway.fusion.fusion_core import FusionCore
+
+    tmp = tmp_path_factory.mktemp("gateway-vcan-nm")
+    if not Path("/sys/class/net/vcan1").exists():
+        _ip("link", "add", "dev", "vcan1", "type", "vcan")
+    _ip("link", "set", "up", "vcan1")
+    notify = NotifySocket(tmp / "notify.sock")
+    recording = tmp / "vcan1.log"
+    marks: dict[str, float] = {}
+    with _Pacer([]) as player:  # a serial port that stays silent
+        config = tmp / "navgw.toml"
+        config.write_text(
+            f'[imu]\ninterface = "socketcan"\nchannel = "{vcan0}"\n'
+            '[isobus]\ninterface = "socketcan"\nchannel = "vcan1"\n'
+            f'[gnss]\nport = "{player.device}"\n'
+        )
+        name = FusionCore.from_config(load_config(config)).claimer.name
+        dump = _candump("vcan1", recording)
+        watch = _Watch()
+        env = {**os.environ, "NOTIFY_SOCKET": str(notify.path)}
+        gateway = subprocess.Popen(
+            [sys.executable, "-m", "gateway.cli.main", "-v", "run", "--config", str(config)],
+            cwd=REPO, env=env, stderr=subprocess.PIPE, text=True,
+        )  # fmt: skip
+        try:
+            assert notify.wait_for("READY=1", 180.0), f"no READY=1, exit {gateway.poll()}"
+            watch.wait("heartbeat from 0x1C", _id_is(0x1DF0111C), 60.0)
+
+            def step(mark: str, frames: list[str], what: str, test: Test) -> None:
+                marks[mark] = time.time()
+                _cansend(*frames)
+                watch.wait(what, test)
+
+            ours = name.to_bytes(8, "little")
+            step("product", [_request(126996, 0xFF)], "126996", _id_is(0x19F0141C))
+            step("pgn_list", [_request(126464, 0x1C)], "126464 to the tool", _id_is(0x19EE401C))
+            unsupported = [_request(UNSUPPORTED_GLOBAL, 0xFF), _request(UNSUPPORTED_TO_US, 0x1C)]
+            step("unsupported", unsupported, "NAK", _id_is(0x18E8FF1C))
+            higher = _frame_text(0x18EEFF1C, (name + 1).to_bytes(8, "little"))
+            step("higher", [higher], "our defence of 0x1C", _id_is(0x18EEFF1C, ours))
+            time.sleep(1.5)  # past the re-claim interval
+            spoof = _frame_text(0x09F1131C, bytes(8))
+            step("spoof", [spoof], "re-claim of 0x1C", _id_is(0x18EEFF1C, ours))
+            bam = _commanded_bam(name, COMMANDED_TO)
+            step("commanded", bam, "claim of 0x30", _id_is(0x18EEFF30, ours))
+            watch.wait("NAVGW_STATUS from 0x30", _id_is(0x18FF2230))
+            lower = _frame_text(0x18EEFF30, bytes(8))
+            step("lower", [lower], "claim of 0x81", _id_is(0x18EEFF81, ours))
+            time.sleep(1.0)
+            marks["end"] = time.time()
+            gateway.send_signal(signal.SIGTERM)
+            returncode = gateway.wait(timeout=60)
+        finally:
+            watch.bus.shutdown()
+            if gateway.poll() is None:
+                gateway.kill()
+            stderr = gateway.communicate()[1]
+            dump.terminate()
+            dump.wait(timeout=10)
+            notify.close()
+    return NetworkSession(recording, name, marks, stderr, returncode)
+
+
+def _decoded(session: NetworkSession, pgn: int) -> list[NMEA2000Message]:
+    """The messages of ``pgn`` in the recording, decoded by the nmea2000 package (each step
+    asks once: the step's answer is all of them, whenever its last frame came)."""
+    decoder = NMEA2000Decoder()
+    messages = (decoder.decode(frame) for frame in read_candump(session.recording))
+    return [m for m in messages if m is not None and pgn == m.PGN]
+
+
+def _values(message: NMEA2000Message) -> dict[str, object]:
+    return {f.id: f.value for f in message.fields}
+
+
+def test_product_information_on_request_decodes_with_our_version(
+    network_session: NetworkSession,
+) -> None:
+    assert network_session.returncode == 0, network_session.stderr[-2000:]
+    assert "Traceback" not in network_session.stderr
+    infos = _decoded(network_session, 126996)
+    assert len(infos) == 1 and infos[0].source == 0x1C
+    values = _values(infos[0])
+    assert values["softwareVersionCode"] == metadata.version("navgw")
+    assert values["modelSerialCode"] == "1" and values["modelId"] == "navgw GNSS/IMU gateway"
+
+
+def test_pgn_list_on_a_request_to_us_goes_to_the_requester(
+    network_session: NetworkSession,
+) -> None:
+    lists = _decoded(network_session, 126464)
+    assert [m.destination for m in lists] == [TOOL, TOOL]
+    transmit = lists[0]
+    listed = [
+        transmit.get_list_field_by_id(i, "pgn").value for i in range(transmit.get_list_field_size())
+    ]
+    assert _values(transmit)["functionCode"] == "Transmit PGN list"
+    assert {126996, 126993, 127257, 129029, 59392} <= set(listed)
+
+
+def test_unsupported_pgn_nak_only_when_addressed_to_us(network_session: NetworkSession) -> None:
+    naks = _decoded(network_session, 59392)  # the global request got none
+    assert [(_values(m)["control"], _values(m)["pgn"]) for m in naks] == [
+        ("NAK", UNSUPPORTED_TO_US)
+    ]
+
+
+def test_competing_claims_violation_and_commanded_address(network_session: NetworkSession) -> None:
+    s = network_session
+    frames = list(read_candump(s.recording))
+    ours = s.name.to_bytes(8, "little")
+
+    def claims_from_us(start: str, end: str) -> list[int]:
+        return [
+            f.arbitration_id & 0xFF for f in frames
+            if f.arbitration_id >> 8 == 0x18EEFF and bytes(f.data) == ours
+            and s.marks[start] <= f.timestamp < s.marks[end]
+        ]  # fmt: skip
+
+    assert claims_from_us("higher", "spoof") == [0x1C]  # a higher NAME: we defend, once
+    assert claims_from_us("spoof", "commanded") == [0x1C]  # a violation: we claim again
+    assert claims_from_us("commanded", "lower") == [COMMANDED_TO]  # commanded: we move
+    assert claims_from_us("lower", "end") == [0x81]  # a lower NAME: we move on (0x80 reserved)
+    # nothing from an address once we have left it
+    after_move = [f for f in frames if f.timestamp >= s.marks["commanded"] + 1.0]
+    left = [f for f in after_move if f.arbitration_id & 0xFF == 0x1C]
+    assert not left, [f"{f.arbitration_id:08X}" for f in left[:5]]
+    after_loss = [
+        f for f in frames
+        if f.timestamp >= s.marks["lower"] + 1.0 and f.arbitration_id & 0xFF == COMMANDED_TO
+    ]  # fmt: skip
+    assert not after_loss
+    assert any(f.arbitration_id & 0xFF == 0x81 and f.arbitration_id >> 8 != 0x18EEFF
+               for f in frames if f.timestamp >= s.marks["lower"])  # fmt: skip
