@@ -1,5 +1,6 @@
-"""`navgw run` and `navgw --help` load neither the simulator nor scipy (issue 13): the ECU
-install stays lean and the service starts fast. Each case runs in a fresh interpreter."""
+"""`navgw run` and `navgw --help` load neither the simulator, scipy, matplotlib nor the
+monitor's Textual (issues 13, 18): the ECU install stays lean and the service starts fast.
+Each case runs in a fresh interpreter."""
 
 from __future__ import annotations
 
@@ -20,7 +21,11 @@ if argv == ["--help"]:
         pass
 else:
     build_parser(argv).parse_args(argv)
-heavy = sorted(m for m in sys.modules if m.split(".")[0] in ("sim_bus", "scipy", "matplotlib"))
+heavy = sorted(
+    m for m in sys.modules
+    if m.split(".")[0] in ("sim_bus", "scipy", "matplotlib", "textual")
+    or m.startswith(("gateway.monitor", "gateway.readback"))
+)
 print(json.dumps(heavy))
 """
 
@@ -43,3 +48,12 @@ def test_the_simulator_commands_still_work_when_asked_for() -> None:
         capture_output=True, text=True, check=True,
     )  # fmt: skip
     assert "--out DIR" in out.stdout and "field" in out.stdout
+
+
+@pytest.mark.parametrize(("command", "option"), [("monitor", "--log LOG"), ("plot", "--truth")])
+def test_the_off_vehicle_viewers_are_there_when_asked_for(command: str, option: str) -> None:
+    out = subprocess.run(
+        [sys.executable, "-m", "gateway.cli.main", command, "--help"],
+        capture_output=True, text=True, check=True,
+    )  # fmt: skip
+    assert option in out.stdout

@@ -32,7 +32,7 @@ def add_subparser(
         description="Simulate a field run, play its IMU frames onto a virtual CAN bus and its "
         "NMEA sentences onto a pseudo-terminal faster than real time, run the live gateway "
         "service on them, and show its estimates next to the simulator's truth. Ends with "
-        "the output frames (candump -L), a plot of bias convergence and attitude error "
+        "the output frames (candump -L), a picture of the run as navgw plot draws it "
         "(PNG, needs matplotlib) and a summary, all in --out.",
     )
     p.add_argument(

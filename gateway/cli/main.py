@@ -17,7 +17,8 @@ from gateway import __version__
 
 #: Sub-commands in the order ``--help`` lists them: the module that implements each, and its
 #: one-line help. Only the module of the command being run is imported: `navgw run` and
-#: `navgw --help` load neither the simulator nor scipy (tests/test_cli_imports.py).
+#: `navgw --help` load neither the simulator, scipy, matplotlib nor textual
+#: (tests/test_cli_imports.py).
 COMMANDS = {
     "run": (
         "gateway.cli.cmd_run",
@@ -33,11 +34,16 @@ COMMANDS = {
     ),
     "config": ("gateway.cli.cmd_config", "print an example config, or check a config file"),
     "sim": ("gateway.cli.cmd_sim", "simulate a field run: IMU CAN log, NMEA log and truth"),
+    "monitor": (
+        "gateway.cli.cmd_monitor",
+        "watch a bus or an output log: mode, fix, attitude, biases, rates, claims",
+    ),
+    "plot": ("gateway.cli.cmd_plot", "draw a run from its output log (and the truth)"),
 }
 
 
 #: Off-vehicle dependencies and the extra that installs each (pyproject.toml).
-OPTIONAL = {"scipy": "sim", "matplotlib": "plots"}
+OPTIONAL = {"scipy": "sim", "matplotlib": "plots", "textual": "monitor"}
 
 
 def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:

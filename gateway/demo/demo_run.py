@@ -7,7 +7,8 @@ a real pty, ``speed`` times faster than real time;
 runs in this process on a :class:`~gateway.service.timebase.TimeBase` of the same speed and sends
 its
 frames on a second virtual bus (the ISOBUS), which is recorded. Meanwhile the solution is
-sampled (:class:`Trace`) for a live view and, at the end, a plot and a summary against truth.
+sampled (:class:`Trace`) for a live view and a summary against truth; at the end the output
+log is drawn as ``navgw plot`` draws it (:mod:`gateway.demo.run_plot`).
 """
 
 from __future__ import annotations
@@ -24,6 +25,7 @@ import can
 import numpy as np
 import numpy.typing as npt
 
+from drivers.errors import InputError
 from drivers.logs.candump import CandumpWriter
 from drivers.units import RAD_TO_DEG, wrap_pi
 from gateway.config.gateway_config import (
@@ -36,6 +38,7 @@ from gateway.config.gateway_config import (
 from gateway.demo.playback import SyncedPlayback
 from gateway.estimation.geodesy import lla_to_ned
 from gateway.estimation.solution import Mode, Solution
+from gateway.readback.run_series import read_run
 from gateway.service.live_loop import GatewayService
 from gateway.service.timebase import TimeBase
 from sim_bus.scenarios import SCENARIOS, generate
@@ -294,7 +297,7 @@ async def run_demo(options: DemoOptions, show: Callable[[str], None]) -> DemoSum
     if status != 0:
         raise RuntimeError("the gateway service failed (see its log)")
     show(view_text(service, truth, playback.t0))
-    plot, note = plot_trace(trace, truth, out / PLOT_FILE)
+    plot, note = plot_output(out / OUTPUT_LOG, truth, out / PLOT_FILE)
     return summarise(
         service, trace, truth, playback.t0, time.perf_counter() - wall0, out, plot, note
     )
@@ -354,39 +357,14 @@ def summarise(
     )
 
 
-def plot_trace(trace: Trace, truth: Truth, path: Path) -> tuple[Path | None, str]:
-    """Bias estimates against truth and the attitude error over time, as a PNG."""
+def plot_output(log: Path, truth: Truth, path: Path) -> tuple[Path | None, str]:
+    """The run's picture (:mod:`gateway.demo.run_plot`, as ``navgw plot`` draws it) from the
+    output log, from its first frame on, with the errors against truth."""
     try:
-        import matplotlib
-
-        matplotlib.use("Agg")
-        import matplotlib.pyplot as plt
+        from gateway.demo.run_plot import save_run_plot
     except ImportError:
         return None, "matplotlib is not installed (pip install 'navgw[plots]')"
-    if not trace.t:
-        return None, "no solution to plot"
-    err, tr = _errors(trace, truth)
-    t = np.asarray(trace.t) - truth.t[0]
-    fig, axes = plt.subplots(3, 1, figsize=(10, 9), sharex=True)
-    g, a = np.asarray(trace.bias_g_rps) * RAD_TO_DEG, np.asarray(trace.bias_a_mps2)
-    for i, axis in enumerate("xyz"):
-        (line,) = axes[0].plot(t, g[:, i], label=f"gyro {axis}")
-        axes[0].plot(t, tr["bias_g_rps"][:, i] * RAD_TO_DEG, "--", color=line.get_color())
-    for i, axis in enumerate("xy"):
-        (line,) = axes[1].plot(t, a[:, i], label=f"accel {axis}")
-        axes[1].plot(t, tr["bias_a_mps2"][:, i], "--", color=line.get_color())
-    for i, name in enumerate(("roll", "pitch", "heading")):
-        axes[2].plot(t, err[:, i], label=name)
-    axes[0].set_ylabel("gyro bias, deg/s")
-    axes[1].set_ylabel("accel bias, m/s^2")
-    axes[2].set_ylabel("attitude error, deg")
-    axes[2].set_ylim(-3, 3)
-    axes[2].set_xlabel("simulated time, s")
-    axes[0].set_title("navgw demo: estimates (solid) and truth (dashed)")
-    for ax in axes:
-        ax.grid(True, alpha=0.3)
-        ax.legend(loc="upper right", fontsize="small")
-    fig.tight_layout()
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path, ""
+    try:
+        return save_run_plot(read_run(log), path, truth), ""
+    except InputError as exc:
+        return None, str(exc)
