@@ -128,6 +128,7 @@ def test_a_log_source_follows_its_speed_and_stops_at_its_end(run: OutputRun) -> 
         (["--log", "LOG", "--speed", "0"], "--speed 0.0: expected a number > 0"),
         (["--log", "LOG", "--channel", "can1"], "--log reads a file: give it without"),
         (["--speed", "2"], "--speed is for --log"),
+        (["--log", "LOG", "--config", "nowhere.toml"], "nowhere.toml: cannot read config file"),
         (["--interface", "no-such-interface"], "cannot open CAN interface 'no-such-interface' "
          "channel 'can0': "),
     ],

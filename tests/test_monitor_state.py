@@ -131,6 +131,33 @@ def test_a_replayed_run_reads_as_a_person_would(fed: BusState, run: OutputRun) -
     assert fed.banner(fed.last_t + 0.5) == ""
 
 
+def test_rates_are_judged_against_the_units_configured_ones(run: OutputRun) -> None:
+    """``navgw monitor --config``: a unit configured for other rates than SPEC 4's (the log
+    was made with the defaults) shows them, and what the log's rates mean against them."""
+    configured = {
+        int(Pgn.ATTITUDE): 0.0,
+        int(Pgn.NAVGW_GYRO_BIAS): 2.0,
+        int(Pgn.RATE_OF_TURN): 50.0,
+    }
+    state = BusState(configured_hz=configured)
+    for msg in read_candump(run.log):
+        state.feed(msg)
+    src = state.current
+    assert src is not None and state.last_t is not None
+    rates = {r.name: r for r in src.rates(state.last_t)}
+    assert (rates["ATTITUDE"].configured_hz, rates["ATTITUDE"].verdict) == (0.0, "high")
+    assert (rates["NAVGW_GYRO_BIAS"].configured_hz, rates["NAVGW_GYRO_BIAS"].verdict) == (
+        2.0,
+        "low",
+    )
+    assert rates["RATE_OF_TURN"].verdict == "ok"
+    assert rates["VESSEL_HEADING"].verdict == "high"  # 10 Hz on the bus, not configured here
+    quiet = BusState(configured_hz=configured)
+    quiet.feed(next(iter(read_candump(run.log))))
+    (first,) = quiet.sources.values()
+    assert {r.name: r.verdict for r in first.rates(state.last_t)}["ATTITUDE"] == "off"
+
+
 def test_a_stopped_bus_and_a_silent_source_get_a_banner(fed: BusState) -> None:
     assert fed.last_t is not None
     assert fed.banner(fed.last_t + 3.25) == "NO FRAMES for 3.2 s"

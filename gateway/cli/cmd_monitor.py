@@ -9,7 +9,10 @@ from pathlib import Path
 
 import can
 
+from gateway.config.config_schema import ConfigError
+from gateway.config.gateway_config import load_config
 from gateway.monitor.app import MonitorApp
+from gateway.monitor.bus_state import BusState
 from gateway.monitor.sources import BusSource, FrameSource, LogSource
 
 DEFAULT_INTERFACE = "socketcan"
@@ -36,6 +39,12 @@ def add_subparser(
     p.add_argument("--channel", help=f"python-can channel of the bus (default {DEFAULT_CHANNEL})")
     p.add_argument("--log", type=Path, help="read a candump -L log instead of a bus")
     p.add_argument("--speed", type=float, help="with --log: times real time (default 1; e.g. 10)")
+    p.add_argument(
+        "--config",
+        type=Path,
+        help="the unit's navgw.toml: its [output] rates are the ones measured rates are "
+        "compared with (default: SPEC 4's)",
+    )
     p.set_defaults(func=run)
 
 
@@ -66,13 +75,21 @@ def open_source(args: argparse.Namespace) -> FrameSource | str:
 
 
 def run(args: argparse.Namespace) -> int:
-    """0 after the user quits; 2 when the options or the source are wrong."""
+    """0 after the user quits; 2 when the options, the config or the source are wrong."""
+    state = BusState()
+    if args.config is not None:
+        try:
+            rates = load_config(args.config).output.rates_hz()
+            state.configured_hz = {int(pgn): hz for pgn, hz in rates.items()}
+        except ConfigError as exc:
+            print(f"navgw monitor: {exc}", file=sys.stderr)
+            return 2
     source = open_source(args)
     if isinstance(source, str):
         print(f"navgw monitor: {source}", file=sys.stderr)
         return 2
     try:
-        MonitorApp(source).run()
+        MonitorApp(source, state).run()
     finally:
         source.close()
     return 0

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import math
 from collections import Counter, deque
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 
 import can
@@ -41,6 +42,7 @@ SPARKS: dict[str, tuple[str, str, float, float]] = {
     "accel y": ("NAVGW_ACCEL_BIAS", "ACCEL_BIAS_Y", 1.0, 1.0),
 }
 NAV_PGNS = frozenset(int(p) for p in DEFAULT_RATES_HZ)
+SPEC_RATES_HZ: Mapping[int, float] = {int(p): hz for p, hz in DEFAULT_RATES_HZ.items()}
 
 
 @dataclass
@@ -73,9 +75,12 @@ class Rate:
 
     @property
     def verdict(self) -> str:
-        """``ok``, ``low``, ``high``, ``missing`` or ``""`` (no configured rate)."""
+        """``ok``, ``low``, ``high``, ``missing``, ``off`` (configured 0 Hz: ``high`` if it
+        comes all the same) or ``""`` (no configured rate)."""
         if self.configured_hz is None:
             return ""
+        if self.configured_hz == 0.0:
+            return "high" if self.measured_hz else "off"
         if not self.measured_hz:
             return "missing"
         ratio = self.measured_hz / self.configured_hz
@@ -89,6 +94,8 @@ class NavSource:
     """One source address of SPEC 4 PGNs: what it said last, and when."""
 
     address: int
+    #: PGN -> rate the unit is configured for (SPEC 4 defaults unless told), Hz
+    configured_hz: Mapping[int, float] = field(default_factory=lambda: SPEC_RATES_HZ)
     latest: dict[str, Decoded] = field(default_factory=dict)  # DBC message name -> message
     arrivals: dict[int, deque[float]] = field(default_factory=dict)  # PGN -> recent times
     first_t: dict[int, float] = field(default_factory=dict)  # PGN -> first arrival
@@ -147,7 +154,7 @@ class NavSource:
         return [self._rate(pgn, now) for pgn in pgns]
 
     def _rate(self, pgn: int, now: float) -> Rate:
-        configured = DEFAULT_RATES_HZ.get(Pgn(pgn)) if pgn in NAV_PGNS else None
+        configured = self.configured_hz.get(pgn, 0.0) if pgn in NAV_PGNS else None
         name = self.names.get(pgn) or Pgn(pgn).name
         first = self.first_t.get(pgn)
         span = min(RATE_WINDOW_S, now - first) if first is not None else 0.0
@@ -164,6 +171,8 @@ class BusState:
     stopped."""
 
     stall_s: float = STALL_S
+    #: PGN -> configured output rate, Hz (a unit's [output] section; SPEC 4's by default)
+    configured_hz: Mapping[int, float] = field(default_factory=lambda: SPEC_RATES_HZ)
     decoder: OutputFrameDecoder = field(default_factory=OutputFrameDecoder)
     sources: dict[int, NavSource] = field(default_factory=dict)  # every sender, in order heard
     frames_by_source: Counter[int] = field(default_factory=Counter)
@@ -190,7 +199,7 @@ class BusState:
         address = decoded.frame_id.source
         source = self.sources.get(address)
         if source is None:
-            source = self.sources[address] = NavSource(address)
+            source = self.sources[address] = NavSource(address, self.configured_hz)
         source.add(decoded)
         if source.navigates and (
             self.selected is None or (source.is_navgw and not self._current_is_navgw())
