@@ -13,6 +13,11 @@ Metrics are :func:`gateway.demo.accuracy.evaluate`, over the converged part: aft
 16-minute runs (field, gnss-outage; the targets say "after 10 minutes"), after the observer's
 convergence flags elsewhere. Several seeds are summarised
 as mean / worst (of |value| for signed final errors).
+
+A second table per scenario gives the reference point's cross-track error by GNSS condition
+(:func:`gateway.demo.accuracy.evaluate_spans`): RTK fixed in the converged part, during RTK
+float, during DGNSS/single point, during outages and at their end, in the 30 s of recovery
+after each, and the worst roll/pitch error 60-120 s after the (cold) start.
 """
 
 from __future__ import annotations
@@ -32,7 +37,15 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from drivers.samples import GnssFix, ImuAux, ImuSample
 from drivers.units import DEG_TO_RAD
-from gateway.demo.accuracy import Accuracy, Trace, evaluate, first_time, record
+from gateway.demo.accuracy import (
+    Accuracy,
+    SpanAccuracy,
+    Trace,
+    evaluate,
+    evaluate_spans,
+    first_time,
+    record,
+)
 from gateway.demo.baselines import ENGINES, RunSetup
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.fusion.fusion_core import BusFrame
@@ -93,15 +106,17 @@ def converged_from_s(data: SimRunData, observer: Trace | None) -> float | None:
 
 def accuracy_of_run(
     scenario: Scenario, seed: int, engines: Sequence[str], minutes: float | None
-) -> dict[str, Accuracy]:
+) -> dict[str, tuple[Accuracy, SpanAccuracy]]:
     """All engines' accuracy on one seeded run (one worker process's job)."""
     data = simulate_inputs(scenario, seed, minutes)
     traces = run_engines(data, engines)
     t_conv = converged_from_s(data, traces.get("observer"))
-    return {
-        name: evaluate(tr, data.truth, data.setup.antenna_lever_arm_m, t_conv)
-        for name, tr in traces.items()
-    }
+    out = {}
+    for name, tr in traces.items():
+        acc = evaluate(tr, data.truth, data.setup.antenna_lever_arm_m, t_conv)
+        schedule = [(a, b, int(q)) for a, b, q in scenario.gnss.fix_schedule]
+        out[name] = (acc, evaluate_spans(tr, data.truth, schedule, acc.converged_from_s))
+    return out
 
 
 # ================================================================================ table
@@ -144,7 +159,19 @@ COLUMNS = (
 UNITS = "biases deg/s and m/s^2, angles deg, positions cm, times s from the run start"
 
 
-def column_values(results: Sequence[Accuracy], col: Column) -> list[float]:
+SPAN_COLUMNS = (
+    Column("fixed xt rms", "fixed_rms_m", None, 100.0, 2),
+    Column("float xt rms", "float_rms_m", None, 100.0, 2),
+    Column("dgnss/sp xt rms", "coarse_rms_m", None, 100.0, 2),
+    Column("outage xt rms", "outage_rms_m", None, 100.0, 2),
+    Column("outage end xt max", "outage_end_max_m", None, 100.0, 2),
+    Column("recovery xt rms", "recovery_rms_m", None, 100.0, 2),
+    Column("tilt 60-120 s max", "cold_start_tilt_max_rad", None, 1 / DEG_TO_RAD, 3),
+)
+SPAN_UNITS = "reference-point cross-track cm, tilt deg"
+
+
+def column_values(results: Sequence[Accuracy | SpanAccuracy], col: Column) -> list[float]:
     """The column's value in each result (NaN where absent)."""
     out = []
     for acc in results:
@@ -164,12 +191,18 @@ def summary(values: Sequence[float], digits: int) -> str:
     return f"{a.mean():.{digits}f}/{a.max():.{digits}f}"
 
 
-def markdown_table(scenario: str, seeds: Sequence[int], rows: dict[str, list[Accuracy]]) -> str:
-    """One scenario as a Markdown table: engines as rows, :data:`COLUMNS` as columns."""
+def markdown_table(
+    scenario: str,
+    seeds: Sequence[int],
+    rows: dict[str, list[Accuracy]] | dict[str, list[SpanAccuracy]],
+    columns: Sequence[Column] = COLUMNS,
+    units: str = UNITS,
+) -> str:
+    """One scenario as a Markdown table: engines as rows, ``columns`` as columns."""
     cols = [
-        c for c in COLUMNS if any(summary(column_values(r, c), 0) != "-" for r in rows.values())
+        c for c in columns if any(summary(column_values(r, c), 0) != "-" for r in rows.values())
     ]
-    head = f"**{scenario}**, seeds {', '.join(map(str, seeds))} (mean/worst; {UNITS})\n\n"
+    head = f"**{scenario}**, seeds {', '.join(map(str, seeds))} (mean/worst; {units})\n\n"
     lines = [
         "| engine | " + " | ".join(c.header for c in cols) + " |",
         "|---" * (len(cols) + 1) + "|",
@@ -288,11 +321,14 @@ def main(argv: Sequence[str] | None = None) -> None:
         results = [f.result() for f in futures]
     for name in names:
         rows: dict[str, list[Accuracy]] = {e: [] for e in args.engines}
+        spans: dict[str, list[SpanAccuracy]] = {e: [] for e in args.engines}
         for (sc, _), res in zip(jobs, results, strict=True):
             if sc.name == name:
                 for e in args.engines:
-                    rows[e].append(res[e])
+                    rows[e].append(res[e][0])
+                    spans[e].append(res[e][1])
         print(markdown_table(name, args.seeds, rows))
+        print(markdown_table(name, args.seeds, spans, SPAN_COLUMNS, SPAN_UNITS))
 
 
 if __name__ == "__main__":

@@ -92,6 +92,50 @@ _OUTAGES = (
     FixInterval(700.0, 760.0, FixQuality.GNSS),
 )
 
+#: A minute of RTK float twice, a DGNSS and a single-point spell, each followed by RTK fixed.
+_FLOAT_SPELLS = (
+    FixInterval(200.0, 260.0, FixQuality.RTK_FLOAT),
+    FixInterval(380.0, 410.0, FixQuality.DGNSS),
+    FixInterval(500.0, 560.0, FixQuality.RTK_FLOAT),
+    FixInterval(680.0, 710.0, FixQuality.GNSS),
+)
+#: Outages of 5 to 60 s, each followed by two minutes of RTK fixed.
+_OUTAGE_SPANS = (
+    FixInterval(180.0, 185.0, FixQuality.NONE),
+    FixInterval(300.0, 310.0, FixQuality.NONE),
+    FixInterval(430.0, 450.0, FixQuality.NONE),
+    FixInterval(570.0, 610.0, FixQuality.NONE),
+    FixInterval(730.0, 790.0, FixQuality.NONE),
+)
+#: 8-10 deg side slope, 4 m/s work speed, 6 m headland turns (issue 16's steep run).
+_STEEP = VehicleConfig(
+    swath_heading_deg=60.0,
+    swath_length_m=150.0,
+    swath_spacing_m=14.0,
+    n_passes=8,
+    work_speeds_mps=(4.0, 3.5),
+    turn_radius_m=6.0,
+    turn_speed_mps=2.5,
+    start_stop_s=30.0,
+    side_slope_min_deg=8.0,
+    side_slope_max_deg=10.0,
+    side_slope_wavelength_m=90.0,
+    along_slope_deg=2.0,
+)
+#: A cold start parked across a 9 deg slope, 4 deg along: 5 s of rest, then work.
+_SLOPE_START = VehicleConfig(
+    swath_heading_deg=-30.0,
+    swath_length_m=120.0,
+    swath_spacing_m=16.0,
+    n_passes=4,
+    work_speeds_mps=(3.0, 3.5),
+    start_stop_s=5.0,
+    side_slope_min_deg=8.0,
+    side_slope_max_deg=9.0,
+    side_slope_wavelength_m=200.0,
+    along_slope_deg=4.0,
+)
+
 SCENARIOS: dict[str, Scenario] = {
     "field": Scenario(
         "field",
@@ -113,6 +157,28 @@ SCENARIOS: dict[str, Scenario] = {
         "the field run with RTK float, DGNSS, single-point spells and 20 s and 5 s outages",
         VEHICLE_PRESETS["field"],
         gnss=GnssReceiverConfig(fix_schedule=_OUTAGES),
+    ),
+    "steep-turns": Scenario(
+        "steep-turns",
+        "~9 min on an 8-10 deg side slope at 4 m/s, 6 m headland turns, RTK fixed",
+        _STEEP,
+    ),
+    "float-spells": Scenario(
+        "float-spells",
+        "the field run with two minutes of RTK float, 30 s of DGNSS and 30 s of single point",
+        VEHICLE_PRESETS["field"],
+        gnss=GnssReceiverConfig(fix_schedule=_FLOAT_SPELLS),
+    ),
+    "outages": Scenario(
+        "outages",
+        "the field run with GNSS outages of 5, 10, 20, 40 and 60 s, RTK fixed between",
+        VEHICLE_PRESETS["field"],
+        gnss=GnssReceiverConfig(fix_schedule=_OUTAGE_SPANS),
+    ),
+    "slope-start": Scenario(
+        "slope-start",
+        "~3.5 min: cold start parked on a 9 deg side slope (4 deg along), 5 s rest, four passes",
+        _SLOPE_START,
     ),
     "short": Scenario(
         "short",

@@ -15,7 +15,7 @@ compensation makes for a perfect antenna position, which isolates it from GNSS n
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -33,6 +33,14 @@ BoolArray = npt.NDArray[np.bool_]
 
 #: On runs without a convergence flag (or where it never rises), metrics start here, s.
 DEFAULT_CONVERGED_AFTER_S = 600.0
+#: After a degraded span (float, DGNSS, single point, outage) this long counts as recovery.
+RECOVERY_S = 30.0
+#: Cold start: roll/pitch are judged from this long after the run start ...
+COLD_START_JUDGED_FROM_S = 60.0
+#: ... for this long.
+COLD_START_WINDOW_S = 60.0
+#: GGA qualities (drivers.samples.FixQuality values) of the spans reported apart.
+RTK_FIXED, RTK_FLOAT, OUTAGE = 4, 5, 0
 
 
 @dataclass
@@ -169,6 +177,16 @@ def horizontal_error_m(ned_est_m: npt.ArrayLike, ned_true_m: npt.ArrayLike) -> A
     return np.asarray(np.hypot(d[:, 0], d[:, 1]))
 
 
+def cross_track_error_m(
+    ned_est_m: npt.ArrayLike, ned_true_m: npt.ArrayLike, yaw_true_rad: npt.ArrayLike
+) -> Array:
+    """Signed horizontal error across the true heading (n,), m, right positive: the error an
+    autosteer acts on (along-track error moves the implement along its own line)."""
+    d = np.asarray(ned_est_m, dtype=float) - np.asarray(ned_true_m, dtype=float)
+    yaw = np.asarray(yaw_true_rad, dtype=float)
+    return np.asarray(-np.sin(yaw) * d[:, 0] + np.cos(yaw) * d[:, 1])
+
+
 def first_time(t: npt.ArrayLike, flag: npt.ArrayLike) -> float | None:
     """First ``t`` from which ``flag`` stays true to the end, or None if it ends false."""
     t_a = np.asarray(t, dtype=float)
@@ -254,4 +272,69 @@ def evaluate(
         ref_h_max_m=max_abs(pos_h),
         ref_from_att_h_rms_m=rms(att_h),
         ref_from_att_h_max_m=max_abs(att_h),
+    )
+
+
+@dataclass(frozen=True)
+class SpanAccuracy:
+    """Reference-point cross-track error by GNSS condition, one engine on one run, m; and
+    the cold-start tilt. NaN where the run has no such span (or no position was output).
+
+    ``fixed_rms_m``: RTK fixed in the converged part, outside the recovery windows;
+    ``float_rms_m``: during RTK float; ``coarse_rms_m``: during DGNSS and single point;
+    ``outage_rms_m``: during outages; ``outage_end_max_m``: worst |error| of the last position
+    output in each outage (its end, or where the engine stops outputting one);
+    ``recovery_rms_m``: the :data:`RECOVERY_S` after each degraded span;
+    ``cold_start_tilt_max_rad``: worst roll or pitch error over the
+    :data:`COLD_START_WINDOW_S` from :data:`COLD_START_JUDGED_FROM_S` after the run start.
+    """
+
+    fixed_rms_m: float
+    float_rms_m: float
+    coarse_rms_m: float
+    outage_rms_m: float
+    outage_end_max_m: float
+    recovery_rms_m: float
+    cold_start_tilt_max_rad: float
+
+
+def evaluate_spans(
+    trace: Trace,
+    truth: Truth,
+    schedule: Sequence[tuple[float, float, int]],
+    converged_from_s: float,
+) -> SpanAccuracy:
+    """:class:`SpanAccuracy` of ``trace``; ``schedule``: the receiver's (start s, end s,
+    GGA quality) spans from the run start, RTK fixed outside them (later ones win)."""
+    t0 = float(truth.t[0])
+    t_rel = trace.t - t0
+    tr = truth_at(truth, trace.t)
+    ref = lla_to_ned(trace.ref_lla, truth.origin_lla)
+    xt = cross_track_error_m(ref, tr.pos_ned_m, tr.rpy_rad[:, 2])
+    quality = np.full(len(t_rel), RTK_FIXED)
+    recovering = np.zeros(len(t_rel), dtype=bool)
+    ends: list[float] = []
+    for start, end, q in schedule:
+        quality[(t_rel >= start) & (t_rel < end)] = int(q)
+        if int(q) != RTK_FIXED:
+            recovering |= (t_rel >= end) & (t_rel < end + RECOVERY_S)
+    for start, end, q in schedule:
+        inside = np.flatnonzero((t_rel >= start) & (t_rel < end) & np.isfinite(xt))
+        if int(q) == OUTAGE and inside.size:
+            ends.append(abs(float(xt[inside[-1]])))
+    recovering &= quality == RTK_FIXED
+    coarse = (quality != RTK_FIXED) & (quality != RTK_FLOAT) & (quality != OUTAGE)
+    fixed = (quality == RTK_FIXED) & ~recovering & (t_rel >= converged_from_s)
+    window = (t_rel >= COLD_START_JUDGED_FROM_S) & (
+        t_rel < COLD_START_JUDGED_FROM_S + COLD_START_WINDOW_S
+    )
+    tilt = attitude_error_rad(trace.rpy_rad, tr.rpy_rad)[window, :2]
+    return SpanAccuracy(
+        fixed_rms_m=rms(xt[fixed]),
+        float_rms_m=rms(xt[quality == RTK_FLOAT]),
+        coarse_rms_m=rms(xt[coarse]),
+        outage_rms_m=rms(xt[quality == OUTAGE]),
+        outage_end_max_m=max(ends) if ends else math.nan,
+        recovery_rms_m=rms(xt[recovering]),
+        cold_start_tilt_max_rad=max_abs(tilt),
     )

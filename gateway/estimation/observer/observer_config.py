@@ -74,7 +74,13 @@ class ObserverConfig:
     gyro_z_bias_walk_dps_per_sqrt_s: float = 5e-4  # bias random walk (KF Q)
 
     # --- reference-point propagation ---
-    pos_blend_tau_s: float = 0.3  # GNSS position residual is blended in with this tau
+    # position channel (position_channel.py): each fix weighed by its sigma (GST, else the
+    # quality's default scaled by HDOP and age of corrections) against dead reckoning
+    gnss_error_correlation_s: float = 60.0  # fix errors wander (multipath, atmosphere)
+    gnss_white_share: float = 0.3  # share of a fix's sigma that is white epoch to epoch
+    # velocity error of dead reckoning besides the fix's own velocity sigma: lever-arm rate
+    # noise (0.8 cm/s on a 3 m mast), latency (10 ms at 1 m/s^2), attitude in the lever arm
+    dr_velocity_floor_mps: float = 0.01
     # a position residual beyond glitch_sigma x the fix's horizontal sigma (GST, else the
     # quality's default) plus position_gate_m is a glitch: rejected, dead reckoning meanwhile
     position_gate_m: float = 0.5  # lever arm, attitude and latency errors of a working system

@@ -24,7 +24,7 @@ from typing import Literal
 import numpy as np
 
 from drivers.log_limit import LogLimiter
-from drivers.samples import FixQuality, GnssFix, ImuSample
+from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, SQRT_SECONDS_PER_HOUR, wrap_pi
 from gateway.estimation.attitude import (
     Mat9,
@@ -41,6 +41,11 @@ from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import reference_from_antenna, velocity_at
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
+from gateway.estimation.observer.position_channel import (
+    PositionChannel,
+    fix_position_sigma_m,
+    fix_velocity_sigma_mps,
+)
 from gateway.estimation.observer.tereshkov import TereshkovObserver
 from gateway.estimation.solution import Convergence, Mode, Solution, navigation_mode
 
@@ -120,7 +125,14 @@ class ObserverEngine:
         self._v_ned_mps = [0.0, 0.0, 0.0]
         self._nav_valid = False
         self._frame: LocalFrame | None = None  # local NED around the first fix
-        self._t_pos_epoch_s: float | None = None
+        self._t_pos_epoch_s: float | None = None  # last epoch whose position was used
+        self._position = PositionChannel(cfg.gnss_error_correlation_s, cfg.gnss_white_share)
+        self._t_position_s = 0.0  # epoch time the position channel was predicted to
+        self._l_imu_f = tuple(float(x) for x in cfg.imu_lever_arm_m)
+        self._v_imu_ned_mps = [0.0, 0.0, 0.0]  # IMU-point velocity while coasting
+        # IMU-point minus reference-point velocity, C (w_b x l_imu), at the last velocity
+        # reset: the velocity state integrates the IMU point's f_p since then
+        self._lever_v_ned_mps = (0.0, 0.0, 0.0)
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
         self._t_vel_rx_s: float | None = None  # receive time of the last usable velocity
@@ -163,8 +175,11 @@ class ObserverEngine:
         if self._control_until_s is not None and t > self._control_until_s:
             self._end_control()
         fpn, fpe, fpd = obs.propagate((w[0], w[1], w[2]), (f[0], f[1], f[2]), dt)
-        self._propagate_navigation(fpn, fpe, fpd, dt)
         c = obs.c_bp9
+        if self._coasting:
+            self._coast_on_the_ground(fpn, fpe, fpd, dt, c, obs.w_b_rps)
+        else:
+            self._propagate_navigation(fpn, fpe, fpd, dt)
         self._hc_rad += self._w_pz_rps * dt
         sf = self._sf
         wi = self._wi
@@ -203,6 +218,47 @@ class ObserverEngine:
         p[0] += v[0] * dt
         p[1] += v[1] * dt
         p[2] += v[2] * dt
+
+    def _coast_on_the_ground(
+        self,
+        fpn: float,
+        fpe: float,
+        fpd: float,
+        dt: float,
+        c: Mat9,
+        w_b: tuple[float, float, float],
+    ) -> None:
+        """Dead reckoning without GNSS velocity, under the wheeled-vehicle constraints.
+
+        The reference point (on the ground, between the wheels) neither slips sideways nor
+        leaves the ground: its body velocity is (u, 0, 0). Only u is left to the inertial
+        solution, so a tilt error (g theta, 0.01 m/s^2 for 0.06 deg) no longer grows a
+        lateral velocity error: cross-track error comes from the heading error alone.
+        The IMU point is integrated (f_p is its specific force) and constrained to the body
+        velocity (u, 0, 0) + w_b x l_imu, so the lever arm's rotation terms do not leak into
+        u (projecting the reference velocity instead kept the centripetal w^2 l_x of a turn
+        and dropped its rotation: 0.4 m/s of forward error after a 10 s headland turn). A
+        hard constraint: true sideslip and bounce are below a few cm/s on firm ground.
+        """
+        self._sf[0] += fpn * dt
+        self._sf[1] += fpe * dt
+        self._sf[2] += fpd * dt
+        vi = self._v_imu_ned_mps
+        vn = vi[0] + fpn * dt
+        ve = vi[1] + fpe * dt
+        vd = vi[2] + (fpd + GRAVITY_MPS2) * dt
+        lx, ly, lz = self._l_imu_f
+        wx, wy, wz = w_b
+        # lever-arm velocity w_b x l_imu (body); forward speed of the IMU point u + lever x
+        lev_x, lev_y, lev_z = wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx
+        u_imu = c[0] * vn + c[3] * ve + c[6] * vd
+        for i in range(3):
+            vi[i] = c[3 * i] * u_imu + c[3 * i + 1] * lev_y + c[3 * i + 2] * lev_z
+        u = u_imu - lev_x
+        v, p = self._v_ned_mps, self._p_ned_m
+        for i in range(3):
+            v[i] = c[3 * i] * u
+            p[i] += v[i] * dt
 
     def _align_tilt(self, t: float, w: list[float], f: list[float]) -> None:
         """Roll/pitch from the mean specific force over a quiet window, yaw 0 until COG/HDT.
@@ -308,6 +364,11 @@ class ObserverEngine:
         cog_ref = math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
         yaw_rate = float(c_bn[2] @ w_still)
         self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn)
+        self._lever_v_ned_mps = (
+            float(v_imu[0] - v_ref[0]),
+            float(v_imu[1] - v_ref[1]),
+            float(v_imu[2] - v_ref[2]),
+        )
         self._correct_position(fix, t_e, row, c_e, (float(v_ref[0]), float(v_ref[1])))
 
     def _hold_control(self, t_e: float) -> None:
@@ -499,6 +560,8 @@ class ObserverEngine:
         obs.learn = False
         self._w_pz_rps = 0.0
         self._coasting = True
+        for i in range(3):
+            self._v_imu_ned_mps[i] = self._v_ned_mps[i] + self._lever_v_ned_mps[i]
         self._prev_epoch = None
         self._learn_ok_since_s = None
 
@@ -571,13 +634,15 @@ class ObserverEngine:
         c_bn: np.ndarray,
         v_ref_ne: tuple[float, float] | None,
     ) -> None:
-        """Reference point = antenna - C l_ant (full 3-D), blended into the propagated state.
+        """Reference point = antenna - C l_ant (full 3-D), weighed into the propagated state.
 
         The propagated state at t_e is reconstructed from the f_p integral in the history:
         v(t_e) = v_now - (S_f(now) - S_f(t_e)) - g (now - t_e), p(t_e) by the trapezoid.
         Horizontal velocity is reset to the GNSS one at t_e (plus the inertial change since);
-        position is blended with gain alpha = min(1, 2T/tau_pos); vertical velocity, which GNSS
-        does not give, comes from the height residual (second-order complementary loop).
+        the position residual is weighed by the position channel's Kalman gain (the fix's
+        sigma against the dead-reckoning error since the last fix, :meth:`_position_gains`);
+        vertical velocity, which GNSS does not give, comes from the height residual
+        (second-order loop, alpha-beta with beta = alpha^2 / 4, alpha the down-axis gain).
 
         The corrections (dp, dv) are made at t_e and reach the current state through the age
         a = now - t_e: p_now += dp + dv a, v_now += dv. Adding dv to the velocity without its
@@ -601,6 +666,8 @@ class ObserverEngine:
                 self.counters.late_epochs += 1
                 self._log.warning(t_e, late_epoch_text(t_e, self._hist[0][_T]), "late")
             return
+        channel = self._position
+        channel.set_fix(fix.quality, self._fix_sigma_m(fix))
         if not self._nav_valid:
             age = self._t_s - t_e
             vn, ve = v_ref_ne if v_ref_ne is not None else (0.0, 0.0)
@@ -610,8 +677,9 @@ class ObserverEngine:
                 float(p_ref[1] + ve * age),
                 float(p_ref[2]),
             ]
+            channel.reset()
             self._nav_valid = True
-            self._t_pos_epoch_s = t_e
+            self._t_pos_epoch_s = self._t_position_s = t_e
             return
         age = self._t_s - row[_T]
         v_e = [
@@ -620,44 +688,76 @@ class ObserverEngine:
             v[2] - (sf[2] - row[_SF_D]) - GRAVITY_MPS2 * age,
         ]
         dp = [float(p_ref[i]) - (p[i] - 0.5 * (v[i] + v_e[i]) * age) for i in range(3)]
+        self._predict_position(fix, t_e)
         interval_s = min(t_e - (self._t_pos_epoch_s or t_e), self.cfg.max_gnss_interval_s)
-        tau = self.cfg.pos_blend_tau_s
-        k_p = min(1.0, 2.0 * interval_s / tau) if interval_s > 0.0 else 1.0
         verdict = self._gate_position(fix, t_e, dp)
-        if verdict == "reject":
-            k_p, interval_s = 0.0, 0.0  # dead reckoning on the GNSS velocity meanwhile
+        corr = (0.0, 0.0, 0.0)
+        k_d = 0.0
+        if verdict == "use":
+            c_n, c_e, c_d, k_d = channel.update(dp)
+            corr = (c_n, c_e, c_d)
         elif verdict == "reset":
-            k_p = 1.0
+            channel.reset()
+            corr, k_d = (dp[0], dp[1], dp[2]), 1.0
         dv = [0.0, 0.0, 0.0]
         if v_ref_ne is not None:
             dv[0] = v_ref_ne[0] - v_e[0]
             dv[1] = v_ref_ne[1] - v_e[1]
         if interval_s > 0.0:
-            # alpha-beta form of the critically damped loop (2/tau, 1/tau^2): beta = alpha^2/4
-            # stays stable with alpha capped at 1 whatever the epoch interval (1 Hz included)
-            dv[2] = 0.25 * k_p * k_p / interval_s * dp[2]
+            # alpha-beta form of the critically damped loop: beta = alpha^2 / 4 (alpha * the
+            # correction alpha dz) stays stable with alpha <= 1 whatever the epoch interval
+            dv[2] = 0.25 * k_d / interval_s * corr[2]
         for i in range(3):
-            p[i] += k_p * dp[i] + dv[i] * age
+            p[i] += corr[i] + dv[i] * age
             v[i] += dv[i]
-        if k_p > 0.0:
+        if verdict != "reject":
             self._t_pos_epoch_s = t_e
+
+    def _fix_sigma_m(self, fix: GnssFix) -> tuple[float, float, float]:
+        """The fix's position 1-sigma NED (:func:`fix_position_sigma_m`); a quality without
+        a typical figure (PPS, manual, simulation) is taken as single-point."""
+        sigma = fix_position_sigma_m(fix)
+        if sigma is not None:
+            return sigma
+        h, d, _ = DEFAULT_GNSS_SIGMAS[int(FixQuality.GNSS)]
+        return (h, h, d)
+
+    def _predict_position(self, fix: GnssFix, t_e: float) -> None:
+        """Grow the position channel's variance over the dead reckoning since its last epoch.
+
+        Per horizontal axis: the GNSS-reset velocity's error (the fix's velocity sigma plus
+        ``dr_velocity_floor_mps``) times the interval, plus, for the inertial part, the
+        acceleration error of the tilt (g sigma_tilt, accelerometer bias included) over the
+        interval squared / 2: 0.1 mm over a 0.1 s epoch, metres over a 20 s outage. The
+        vertical axis takes the same (the height loop has no better velocity).
+        """
+        interval_s = t_e - self._t_position_s
+        if interval_s <= 0.0:
+            return
+        self._t_position_s = t_e
+        sigma_v = math.hypot(
+            fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps), self.cfg.dr_velocity_floor_mps
+        )
+        sigma_a = GRAVITY_MPS2 * self._sigma_tilt_rad(0.0)
+        sigma_m = sigma_v * interval_s + 0.5 * sigma_a * interval_s * interval_s
+        self._position.predict(interval_s, sigma_m, sigma_m)
 
     def _gate_position(
         self, fix: GnssFix, t_e: float, dp: list[float]
     ) -> Literal["use", "reject", "reset"]:
         """Use, reject (a glitch) or reset to the position whose horizontal residual is ``dp``.
 
-        Gate: ``glitch_sigma`` x (the fix's horizontal sigma + the velocity's drift since the
-        last position used) + ``position_gate_m``. A glitch is counted, logged at a limited
-        rate, and not blended in (the velocity still is); the mode is DEGRADED meanwhile.
+        Gate: ``glitch_sigma`` x the residual's 1-sigma as the position channel predicts it
+        (the fix's sigma and the dead-reckoning error since the last position used) +
+        ``position_gate_m``. A glitch is counted, logged at a limited rate, and not weighed
+        in (the velocity still is); the mode is DEGRADED meanwhile.
         The engine resets to the GNSS after ``reset_rejections`` if the receiver's track is
         continuous (the engine is off), else after ``position_reset_s`` (it moved for good:
         a new base station, a datum change); see :mod:`gateway.estimation.gnss_track`.
         """
         cfg, track = self.cfg, self._track
-        since_s = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
-        sigma_h = fix.horizontal_sigma_m + cfg.gnss_vel_sigma_mps * since_s
-        gate_m = cfg.glitch_sigma * sigma_h + cfg.position_gate_m
+        gate_m = cfg.glitch_sigma * self._position.horizontal_innovation_sigma_m()
+        gate_m += cfg.position_gate_m
         residual_m = math.hypot(dp[0], dp[1])
         if residual_m <= gate_m:
             track.accepted()

@@ -1,0 +1,164 @@
+"""Reference-point position channel of the observer engine: each fix weighed by its quality.
+
+The product's own extension of seed 000 (the paper uses no positions; docs/ACCURACY.md,
+"Position channel"). The engine dead-reckons the reference point on the GNSS-reset velocity
+(or, in an outage, on the inertial velocity under the wheeled-vehicle constraints) and this
+channel decides how much of each fix's position residual to take. Per axis (north, east,
+down) a two-state Kalman filter in plain floats:
+
+- ``p``: the engine's position; its error grows between fixes with the dead-reckoning noise;
+- ``b``: the error of the receiver's current solution. RTK float, DGNSS and single-point
+  errors are not white: multipath and atmosphere residuals wander over tens of seconds, so
+  a fix error is modelled as first-order Gauss-Markov (``correlation_s``) plus a small white
+  part. Averaging a minute of float fixes then does not pretend to remove their error (a
+  white model would let the variance collapse to sigma^2 / N and follow the wander), and
+  when RTK fixed returns the carried variance is still large: the first fixed epochs get a
+  gain near 1.
+
+A new fix quality is a new receiver solution with an independent error: ``b`` restarts.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix
+
+#: HDOP the quality's default sigmas (no GST) describe; a larger HDOP scales them up.
+NOMINAL_HDOP = 1.0
+#: Corrections up to this old are normal (1 Hz RTCM over a radio link with drop-outs).
+NOMINAL_AGE_S = 5.0
+#: Beyond it the corrected solution degrades: its sigma grows by this share per second
+#: (ionosphere and orbit decorrelation: an RTK fix 20 s old is ~1.75x as uncertain).
+AGE_GROWTH_PER_S = 0.05
+#: Corrected qualities whose sigma depends on the age of the corrections.
+CORRECTED = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
+
+
+def fix_position_sigma_m(fix: GnssFix) -> tuple[float, float, float] | None:
+    """Position 1-sigma north, east, down of ``fix``: GST when sent; else the quality's
+    default (:data:`drivers.samples.DEFAULT_GNSS_SIGMAS`) scaled by HDOP above
+    :data:`NOMINAL_HDOP` and grown with the age of corrections beyond :data:`NOMINAL_AGE_S`."""
+    sig = fix.position_sigma_m
+    if sig is None or fix.sigma_n_m is not None:
+        return sig
+    scale = 1.0
+    if fix.hdop is not None and fix.hdop > NOMINAL_HDOP:
+        scale = fix.hdop / NOMINAL_HDOP
+    if fix.quality in CORRECTED and fix.age_s is not None and fix.age_s > NOMINAL_AGE_S:
+        scale *= 1.0 + AGE_GROWTH_PER_S * (fix.age_s - NOMINAL_AGE_S)
+    return (sig[0] * scale, sig[1] * scale, sig[2] * scale)
+
+
+def fix_velocity_sigma_mps(fix: GnssFix, floor_mps: float) -> float:
+    """Horizontal velocity 1-sigma per axis: the quality's default, at least ``floor_mps``."""
+    row = DEFAULT_GNSS_SIGMAS.get(int(fix.quality))
+    return max(floor_mps, row[2]) if row is not None else floor_mps
+
+
+@dataclass(slots=True)
+class _Axis:
+    """One axis: covariance of (position error, fix error) and the fix-error estimate, m."""
+
+    p_pp: float = 0.0
+    p_pb: float = 0.0
+    p_bb: float = 0.0
+    b_m: float = 0.0
+
+    def predict(self, q_m2: float, decay: float, var_b_m2: float) -> None:
+        """Dead reckoning adds ``q_m2``; the fix error decays towards its prior variance."""
+        self.p_pp += q_m2
+        self.p_pb *= decay
+        self.p_bb = decay * decay * self.p_bb + (1.0 - decay * decay) * var_b_m2
+        self.b_m *= decay
+
+    def new_solution(self, var_b_m2: float) -> None:
+        """A new receiver solution: its error is independent of everything so far."""
+        self.p_bb, self.p_pb, self.b_m = var_b_m2, 0.0, 0.0
+
+    def update(self, dz_m: float, var_w_m2: float) -> float:
+        """Fuse a residual ``dz_m`` = fix - position; returns the position correction."""
+        r = dz_m - self.b_m
+        a = self.p_pp + self.p_pb
+        c = self.p_pb + self.p_bb
+        s = a + c + var_w_m2
+        k_p, k_b = a / s, c / s
+        self.p_pp -= k_p * a
+        self.p_pb -= k_p * c
+        self.p_bb -= k_b * c
+        self.b_m += k_b * r
+        return k_p * r
+
+    def innovation_var_m2(self, var_w_m2: float) -> float:
+        """Variance of the next residual: position, fix error and white part."""
+        return self.p_pp + 2.0 * self.p_pb + self.p_bb + var_w_m2
+
+
+class PositionChannel:
+    """Kalman weights for the fixes' positions, north/east/down (see the module text)."""
+
+    def __init__(self, correlation_s: float, white_share: float) -> None:
+        """``correlation_s``: correlation time of a fix error; ``white_share``: the share of
+        a fix's sigma that is white from epoch to epoch (the rest wanders)."""
+        self._correlation_s = correlation_s
+        self._white_share = white_share
+        self._axes = (_Axis(), _Axis(), _Axis())
+        self._quality: FixQuality | None = None
+        self._var_b = [0.0, 0.0, 0.0]
+        self._var_w = [0.0, 0.0, 0.0]
+
+    def set_fix(self, quality: FixQuality, sigma_ned_m: tuple[float, float, float]) -> None:
+        """The sigma of the fix about to be used; a new quality restarts the fix error."""
+        w2 = self._white_share * self._white_share
+        for i in range(3):
+            s2 = sigma_ned_m[i] * sigma_ned_m[i]
+            self._var_w[i] = w2 * s2
+            self._var_b[i] = (1.0 - w2) * s2
+        if quality != self._quality:
+            self._quality = quality
+            for i in range(3):
+                self._axes[i].new_solution(self._var_b[i])
+
+    def predict(self, interval_s: float, sigma_h_m: float, sigma_v_m: float) -> None:
+        """Over ``interval_s`` of dead reckoning whose horizontal (per axis) and vertical
+        position errors grew by ``sigma_h_m`` and ``sigma_v_m`` (1-sigma)."""
+        if interval_s <= 0.0:
+            return
+        decay = math.exp(-interval_s / self._correlation_s)
+        q = (sigma_h_m * sigma_h_m, sigma_h_m * sigma_h_m, sigma_v_m * sigma_v_m)
+        for i in range(3):
+            self._axes[i].predict(q[i], decay, self._var_b[i])
+
+    def update(self, dz_ned_m: list[float]) -> tuple[float, float, float, float]:
+        """Fuse the residuals fix - position (NED); returns the position corrections and
+        the down-axis gain (for the vertical velocity loop)."""
+        ax = self._axes
+        d_gain = (ax[2].p_pp + ax[2].p_pb) / ax[2].innovation_var_m2(self._var_w[2])
+        return (
+            ax[0].update(dz_ned_m[0], self._var_w[0]),
+            ax[1].update(dz_ned_m[1], self._var_w[1]),
+            ax[2].update(dz_ned_m[2], self._var_w[2]),
+            d_gain,
+        )
+
+    def reset(self) -> None:
+        """The position was set to the fix: its error is the fix's (white + wander)."""
+        for i in range(3):
+            a = self._axes[i]
+            a.p_pp = self._var_b[i] + self._var_w[i]
+            a.p_pb = -self._var_b[i]
+            a.p_bb = self._var_b[i]
+            a.b_m = 0.0
+
+    def horizontal_innovation_sigma_m(self) -> float:
+        """1-sigma of the next horizontal residual (root sum of north and east)."""
+        ax = self._axes
+        return math.sqrt(
+            ax[0].innovation_var_m2(self._var_w[0]) + ax[1].innovation_var_m2(self._var_w[1])
+        )
+
+    def sigma_ned_m(self) -> tuple[float, float, float]:
+        """Position 1-sigma north, east, down of the engine's reference point."""
+        ax = self._axes
+        return (math.sqrt(ax[0].p_pp), math.sqrt(ax[1].p_pp), math.sqrt(ax[2].p_pp))
