@@ -78,12 +78,18 @@ class Node:
     """Our claimer plus the output scheduler behind a virtual bus, driven by a test clock."""
 
     def __init__(
-        self, channel: str, seed: int = 1, reserved: tuple[int, ...] = (), marks_own: bool = True
+        self,
+        channel: str,
+        seed: int = 1,
+        reserved: tuple[int, ...] = (),
+        marks_own: bool = True,
+        name: Name = NAME,
+        rates: dict[Pgn, float] | None = None,
     ) -> None:
         # receive_own_messages: the bus echoes our frames, as udp_multicast does
         self.bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=True)
-        self.claimer = AddressClaimer(NAME, rng=random.Random(seed), reserved=reserved)
-        self.scheduler = OutputScheduler()
+        self.claimer = AddressClaimer(name, rng=random.Random(seed), reserved=reserved)
+        self.scheduler = OutputScheduler(rates)
         self.echo = EchoFilter()
         self.marks_own = marks_own
         self.now = 1_700_000_000.0
@@ -98,12 +104,20 @@ class Node:
     def start(self) -> None:
         self.send(self.claimer.start(self.now))
 
+    def on_frame(self, msg: can.Message) -> None:
+        """A received frame that is not our echo."""
+        self.send(self.claimer.on_frame(msg, self.now))
+
+    def poll(self) -> None:
+        """The timers, once per step."""
+        self.send(self.claimer.poll(self.now))
+
     def run(self, seconds: float) -> None:
         for _ in range(round(seconds / STEP_S)):
             for msg in received(self.bus, self.marks_own):
                 if not self.echo.is_echo(msg, self.now):
-                    self.send(self.claimer.on_frame(msg, self.now))
-            self.send(self.claimer.poll(self.now))
+                    self.on_frame(msg)
+            self.poll()
             if self.claimer.claimed:
                 assert self.claimer.address is not None
                 loop = LoopStatus(source_address=self.claimer.address, address_claimed=True)

@@ -18,31 +18,28 @@ and the bus load estimate (BusloadTest: gateway/isobus/bus_load.py has its own t
 from __future__ import annotations
 
 import logging
-import random
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterator
 from importlib import metadata
 
 import can
 import pytest
 from nmea2000 import NMEA2000Decoder, NMEA2000Message
 
-from gateway.estimation.solution import Mode, Solution
-from gateway.isobus.address_claim import AddressClaimer, Name
+from gateway.isobus.address_claim import Name
 from gateway.isobus.device_info import (
     HEARTBEAT_INTERVAL_S,
     MANUFACTURER_INFORMATION,
     ProductInfo,
 )
 from gateway.isobus.j1939 import FrameId, Pgn, can_id
-from gateway.isobus.n2k_encode import LoopStatus
 from gateway.isobus.network import (
     NETWORK_TRANSMIT_PGNS,
     RECEIVE_PGNS,
     UNCLAIMED_RECHECK_S,
     NetworkManager,
 )
-from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, OutputScheduler
-from gateway.service.bus_links import EchoFilter
+from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ
+from tests.test_address_claim import Node
 
 NAME = Name(identity_number=123456)
 OURS = NAME.value()
@@ -82,39 +79,28 @@ def commanded(name: int, address: int) -> bytes:
     return name.to_bytes(8, "little") + bytes([address])
 
 
-class Device:
-    """Claimer + network manager + scheduler behind a virtual bus that echoes."""
+class Device(Node):
+    """:class:`~tests.test_address_claim.Node` (claimer and scheduler behind a virtual bus
+    that echoes) with the network manager: requests, commanded address, heartbeat."""
 
     def __init__(self, channel: str, periodic_rates: dict[Pgn, float] | None = None) -> None:
-        self.bus = can.Bus(interface="virtual", channel=channel, receive_own_messages=True)
-        self.claimer = AddressClaimer(NAME, rng=random.Random(1))
-        self.scheduler = OutputScheduler(periodic_rates)
+        super().__init__(channel, name=NAME, rates=periodic_rates)
         product = ProductInfo(software_version=VERSION, serial_code="123456", model_version="B")
         self.network = NetworkManager(self.claimer, product, self.scheduler.rates_hz)
-        self.echo = EchoFilter()
-        self.now = 1_700_000_000.0
-        self.sent: list[can.Message] = []
+        self.fault = False
 
-    def send(self, frames: Iterable[can.Message]) -> None:
-        for frame in frames:
-            self.bus.send(frame)
-            self.echo.sent(frame, self.now)
-            self.sent.append(frame)
+    def on_frame(self, msg: can.Message) -> None:
+        super().on_frame(msg)
+        self.send(self.network.on_frame(msg, self.now))
+
+    def poll(self) -> None:
+        super().poll()
+        if self.now >= self.network.next_heartbeat_t:
+            self.send(self.network.heartbeat(self.now, self.fault))
 
     def run(self, seconds: float, fault: bool = False) -> None:
-        for _ in range(round(seconds / STEP_S)):
-            while (msg := self.bus.recv(0)) is not None:
-                if not self.echo.is_echo(msg, self.now):
-                    self.send(self.claimer.on_frame(msg, self.now))
-                    self.send(self.network.on_frame(msg, self.now))
-            self.send(self.claimer.poll(self.now))
-            if self.now >= self.network.next_heartbeat_t:
-                self.send(self.network.heartbeat(self.now, fault))
-            if self.claimer.claimed:
-                assert self.claimer.address is not None
-                loop = LoopStatus(source_address=self.claimer.address, address_claimed=True)
-                self.send(self.scheduler.frames(Solution(t=self.now, mode=Mode.ALIGNING), loop))
-            self.now += STEP_S
+        self.fault = fault
+        super().run(seconds)
 
     def since(self, index: int, pgn: int | None = None) -> list[can.Message]:
         """Frames sent from ``self.sent[index]`` on (of ``pgn`` only, if given)."""
