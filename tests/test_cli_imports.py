@@ -1,5 +1,6 @@
-"""`navgw run` and `navgw --help` load neither the simulator, scipy, matplotlib nor the
-monitor's Textual (issues 13, 18): the ECU install stays lean and the service starts fast.
+"""`navgw run` and `navgw --help` load neither the simulator, scipy, matplotlib, the
+monitor's Textual nor the fleet's Dask and pyarrow (issues 13, 18, 19): the ECU install
+stays lean and the service starts fast.
 Each case runs in a fresh interpreter."""
 
 from __future__ import annotations
@@ -23,8 +24,9 @@ else:
     build_parser(argv).parse_args(argv)
 heavy = sorted(
     m for m in sys.modules
-    if m.split(".")[0] in ("sim_bus", "scipy", "matplotlib", "textual")
-    or m.startswith(("gateway.monitor", "gateway.readback"))
+    if m.split(".")[0]
+    in ("sim_bus", "scipy", "matplotlib", "textual", "dask", "distributed", "pyarrow", "pandas")
+    or m.startswith(("gateway.monitor", "gateway.readback", "gateway.fleet"))
 )
 print(json.dumps(heavy))
 """
@@ -50,7 +52,10 @@ def test_the_simulator_commands_still_work_when_asked_for() -> None:
     assert "--out DIR" in out.stdout and "field" in out.stdout
 
 
-@pytest.mark.parametrize(("command", "option"), [("monitor", "--log LOG"), ("plot", "--truth")])
+@pytest.mark.parametrize(
+    ("command", "option"),
+    [("monitor", "--log LOG"), ("plot", "--truth"), ("fleet", "--scheduler ADDRESS")],
+)
 def test_the_off_vehicle_viewers_are_there_when_asked_for(command: str, option: str) -> None:
     out = subprocess.run(
         [sys.executable, "-m", "gateway.cli.main", command, "--help"],

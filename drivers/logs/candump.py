@@ -346,3 +346,30 @@ class CandumpReader:
 def read_candump(source: str | Path | TextIO) -> CandumpReader:
     """The frames of a candump ``-L`` log (path or text stream), malformed lines skipped."""
     return CandumpReader(source)
+
+
+def time_span(path: str | Path, tail_bytes: int = 4096) -> tuple[float, float] | None:
+    """Host times of the first and the last frame of a candump ``-L`` log, read from its two
+    ends only (a progress bar's total, whether two rotated files follow on); None when no
+    well-formed line is found there."""
+    path = Path(path)
+    with path.open("rb") as f:
+        head = f.read(tail_bytes)
+        f.seek(max(0, path.stat().st_size - tail_bytes))
+        tail = f.read()
+    stamps = [
+        [msg.timestamp for msg in _frames(chunk.decode("ascii", "replace").splitlines())]
+        for chunk in (head, tail)
+    ]
+    return (stamps[0][0], stamps[1][-1]) if stamps[0] and stamps[1] else None
+
+
+def _frames(lines: Iterable[str]) -> Iterator[can.Message]:
+    """The well-formed frames among ``lines`` (a cut line at a chunk's end is skipped)."""
+    for line in lines:
+        try:
+            msg = parse_candump_line(line)
+        except InputError:
+            continue
+        if msg is not None:
+            yield msg

@@ -8,10 +8,11 @@ from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 from drivers.errors import DriverError
+from drivers.logs.candump import time_span
 from gateway.config.config_schema import ConfigError
 from gateway.config.gateway_config import Engine, load_config
 from gateway.offline.log_inputs import Input, LogInputs
-from gateway.offline.log_replay import ReplaySummary, replay
+from gateway.offline.log_replay import ReplaySummary, replay, unreadable
 
 
 def add_subparser(
@@ -33,18 +34,6 @@ def add_subparser(
     p.set_defaults(func=run)
 
 
-def _log_span_s(path: Path) -> float:
-    """Seconds between the first and last candump line (for the progress bar)."""
-    with path.open("rb") as f:
-        first = f.readline()
-        f.seek(max(0, path.stat().st_size - 4096))
-        last = f.read().rstrip().splitlines()[-1:] or [first]
-    try:
-        return float(last[0].split(b")")[0][1:]) - float(first.split(b")")[0][1:])
-    except (ValueError, IndexError):
-        return 0.0
-
-
 def _progress(items: Iterable[Input], inputs: LogInputs) -> Iterator[Input]:
     """A progress bar in log seconds on a terminal; the plain iterator otherwise."""
     if not sys.stderr.isatty():
@@ -52,7 +41,8 @@ def _progress(items: Iterable[Input], inputs: LogInputs) -> Iterator[Input]:
         return
     from tqdm import tqdm
 
-    with tqdm(total=round(_log_span_s(inputs.can_log)), unit="s", desc="replay") as bar:
+    span = time_span(inputs.can_log)
+    with tqdm(total=round(span[1] - span[0]) if span else 0, unit="s", desc="replay") as bar:
         t0 = None
         for item in items:
             t0 = item.t if t0 is None else t0
@@ -105,21 +95,3 @@ def run(args: argparse.Namespace) -> int:
         print(f"navgw replay: {unread}", file=sys.stderr)
         return 2
     return 0
-
-
-def unreadable(s: ReplaySummary, can_log: Path, nmea_log: Path) -> str | None:
-    """What could not be read (SPEC 5: exit non-zero), None if both logs gave their data."""
-    missing = []
-    if s.stats.imu_samples == 0:
-        missing.append(
-            f"{can_log}: no IMU sample ({s.imu.frames} IMU bridge frames, {s.imu.ignored} other "
-            f"frames, {s.bad_can_lines} malformed lines); expected candump -L lines of the "
-            "bridge's IMU_GYRO/IMU_ACCEL frames (SPEC 1, 3)"
-        )
-    if s.stats.gnss_fixes == 0:
-        missing.append(
-            f"{nmea_log}: no GNSS fix ({s.gnss.sentences_ok} valid sentences, "
-            f"{s.gnss.checksum_errors} bad checksums, {s.gnss.skipped_bytes} junk bytes, "
-            f"{s.bad_nmea_lines} malformed lines); expected NMEA 0183 GGA/RMC lines (SPEC 2, 3)"
-        )
-    return "\n  ".join(missing) or None

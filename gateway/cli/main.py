@@ -39,11 +39,22 @@ COMMANDS = {
         "watch a bus or an output log: mode, fix, attitude, biases, rates, claims",
     ),
     "plot": ("gateway.cli.cmd_plot", "draw a run from its output log (and the truth)"),
+    "fleet": (
+        "gateway.cli.cmd_fleet",
+        "replay many recordings on a Dask cluster into one table (Parquet)",
+    ),
 }
 
 
 #: Off-vehicle dependencies and the extra that installs each (pyproject.toml).
-OPTIONAL = {"scipy": "sim", "matplotlib": "plots", "textual": "monitor"}
+OPTIONAL = {
+    "scipy": "sim",
+    "matplotlib": "plots",
+    "textual": "monitor",
+    "dask": "fleet",
+    "distributed": "fleet",
+    "pyarrow": "fleet",
+}
 
 
 def build_parser(argv: Sequence[str] = ()) -> argparse.ArgumentParser:

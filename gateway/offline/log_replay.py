@@ -77,3 +77,21 @@ def replay(
         log_span_s=(t_last - t_first) if t_first is not None and t_last is not None else 0.0,
         wall_s=wall,
     )
+
+
+def unreadable(s: ReplaySummary, can_log: str | Path, nmea_log: str | Path) -> str | None:
+    """What could not be read (SPEC 5: exit non-zero), None if both logs gave their data."""
+    missing = []
+    if s.stats.imu_samples == 0:
+        missing.append(
+            f"{can_log}: no IMU sample ({s.imu.frames} IMU bridge frames, {s.imu.ignored} other "
+            f"frames, {s.bad_can_lines} malformed lines); expected candump -L lines of the "
+            "bridge's IMU_GYRO/IMU_ACCEL frames (SPEC 1, 3)"
+        )
+    if s.stats.gnss_fixes == 0:
+        missing.append(
+            f"{nmea_log}: no GNSS fix ({s.gnss.sentences_ok} valid sentences, "
+            f"{s.gnss.checksum_errors} bad checksums, {s.gnss.skipped_bytes} junk bytes, "
+            f"{s.bad_nmea_lines} malformed lines); expected NMEA 0183 GGA/RMC lines (SPEC 2, 3)"
+        )
+    return "\n  ".join(missing) or None

@@ -78,10 +78,7 @@ class InputRecorder:
 
     def pairs(self) -> list[str]:
         """Stems of the recordings in the directory, oldest first."""
-        stems = {
-            m[0] for p in self.directory.glob("navgw-*") if (m := _STEM.match(p.name)) is not None
-        }
-        return sorted(stems)
+        return recorded_stems(self.directory)
 
     def _guard(self, write: Callable[..., None], *args: object) -> None:
         try:
@@ -112,3 +109,10 @@ class InputRecorder:
             for suffix in (CAN_SUFFIX, NMEA_SUFFIX):
                 (self.directory / (old + suffix)).unlink(missing_ok=True)
             log.info("deleted old recording %s/%s.*", self.directory, old)
+
+
+def recorded_stems(directory: Path) -> list[str]:
+    """Stems of the pairs (either file of a pair) in ``directory``, oldest first: the running
+    number orders them."""
+    stems = {m[0] for p in directory.glob("navgw-*") if (m := _STEM.match(p.name)) is not None}
+    return sorted(stems)
