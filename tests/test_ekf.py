@@ -13,6 +13,7 @@ from gateway.estimation.attitude import dcm_from_rpy, exp_so3
 from gateway.estimation.ekf.error_state import (
     ATT,
     BG,
+    FIX,
     N_STATES,
     POS,
     VEL,
@@ -44,7 +45,7 @@ def _perturbed(dx: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.n
 def _numeric_h(
     predict_fn: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], np.ndarray], n_out: int
 ) -> np.ndarray:
-    """d(prediction)/d(dx) by central differences, shape (n_out, 15)."""
+    """d(prediction)/d(dx) by central differences, shape (n_out, 18)."""
     h = np.zeros((n_out, N_STATES))
     eps = 1e-6
     for j in range(N_STATES):
@@ -55,9 +56,18 @@ def _numeric_h(
 
 
 def test_position_jacobian_matches_finite_differences() -> None:
-    m = fuse_position(P_NED, C_BN, L_B, np.zeros(3), np.ones(3))
-    assert_allclose(m.h, _numeric_h(lambda p, v, c, w: p + c @ L_B, 3), atol=1e-8)
-    assert_allclose(m.z, -(P_NED + C_BN @ L_B))
+    b = np.array([0.1, -0.2, 0.05])  # the receiver's position error (FIX states)
+    m = fuse_position(P_NED, C_BN, L_B, np.zeros(3), np.ones(3), b)
+    num = _numeric_h(lambda p, v, c, w: p + c @ L_B, 3)
+    eps = 1e-6
+    for j in range(3):  # d(prediction)/d(db) = -dz/d(db), by central differences
+        db = np.zeros(3)
+        db[j] = eps
+        z_plus = fuse_position(P_NED, C_BN, L_B, np.zeros(3), np.ones(3), b + db).z
+        z_minus = fuse_position(P_NED, C_BN, L_B, np.zeros(3), np.ones(3), b - db).z
+        num[:, FIX.start + j] = -(z_plus - z_minus) / (2 * eps)
+    assert_allclose(m.h, num, atol=1e-8)
+    assert_allclose(m.z, -(P_NED + C_BN @ L_B + b))
 
 
 def test_velocity_jacobian_matches_finite_differences() -> None:

@@ -72,7 +72,7 @@ class EstimatorSection:
 
     engine: Engine = field(
         default=Engine.OBSERVER,
-        metadata=_doc('"observer" (Tereshkov bias observer) or "ekf" (15-state GNSS/INS EKF)'),
+        metadata=_doc('"observer" (Tereshkov bias observer) or "ekf" (GNSS/INS EKF, Gu et al.)'),
     )
 
 

@@ -1,1 +1,1 @@
-"""The 15-state loosely coupled GNSS/INS error-state EKF (Gu et al.)."""
+"""The loosely coupled (15 INS + 3 fix-error states) GNSS/INS error-state EKF (Gu et al.)."""

@@ -52,7 +52,11 @@ class EkfConfig:
     history_s: float = 5.0  # INS history kept for late epochs (a loaded host delays them)
 
     # --- GNSS measurement noise ---
-    gnss_sigma_scale: float = 5.0  # R = (scale * GST sigma)^2: RTK errors are time-correlated
+    # the fix's position error (gateway/estimation/gnss_error.py, as the observer's position
+    # channel): Gauss-Markov states for its wander plus a white share; sigma from GST, else
+    # the quality's default scaled by HDOP and the age of corrections
+    gnss_error_correlation_s: float = 60.0  # fix errors wander (multipath, atmosphere)
+    gnss_white_share: float = 0.3  # share of a fix's sigma that is white epoch to epoch
     gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma with RTK fixed
     navigating_fix_qualities: tuple[int, ...] = (4,)  # other usable qualities: DEGRADED
 

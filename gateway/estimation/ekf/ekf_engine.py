@@ -1,4 +1,4 @@
-"""The EKF engine: 15-state loosely coupled GNSS/INS filter behind the Estimator protocol.
+"""The EKF engine: 18-state loosely coupled GNSS/INS filter behind the Estimator protocol.
 
 Per IMU sample (:meth:`EkfEngine.imu`): strapdown mechanisation of the IMU point, a history
 row (for late GNSS epochs), and every ``covariance_period_s`` the covariance prediction from
@@ -20,6 +20,10 @@ Design choices (ALGORITHMS.md 3 leaves them to the implementer):
 - Covariance runs at ~20 Hz on IMU sums
   (:func:`gateway.estimation.ekf.error_state.transition_matrix`), flushed
   before every update.
+- GNSS position: the receiver's error is three Gauss-Markov states plus a white share
+  (:mod:`gateway.estimation.gnss_error`, the model of the observer's position channel),
+  restarted when the fix quality changes (a new receiver solution). RTK float and DGNSS are
+  not averaged into false confidence, and RTK fixed is weighed by its own sigma.
 - Yaw: the non-holonomic constraint (zero lateral and vertical velocity of the reference
   point) ties yaw to the direction of travel whenever the vehicle moves, forwards or in
   reverse; HDT is fused when present. No COG pseudo-measurement is needed.
@@ -52,6 +56,7 @@ from gateway.estimation.ekf.error_state import (
     ATT,
     BA,
     BG,
+    FIX,
     N_STATES,
     POS,
     VEL,
@@ -69,9 +74,16 @@ from gateway.estimation.ekf.error_state import (
 from gateway.estimation.engine_base import HeldEpochs, ImuHealth, common_fields
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
+from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
-from gateway.estimation.solution import Convergence, Mode, Solution, navigation_mode
+from gateway.estimation.solution import (
+    MAX_IMU_STEP_S,
+    Convergence,
+    Mode,
+    Solution,
+    navigation_mode,
+)
 
 Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
@@ -134,6 +146,14 @@ class _History:
         u = (t_s - a[_T]) / (b[_T] - a[_T])
         return a + u * (b - a)
 
+    def spacing(self, t_s: float) -> float:
+        """Time between the rows around ``t_s`` (long across lost IMU samples); 0 if outside."""
+        rows = self._ordered()
+        i = int(np.searchsorted(rows[:, _T], t_s))
+        if i == 0 or i >= len(rows):
+            return 0.0
+        return float(rows[i, _T] - rows[i - 1, _T])
+
     @property
     def full(self) -> bool:
         """Rows are being overwritten: the history spans its whole length."""
@@ -174,9 +194,17 @@ class EkfEngine:
         self._l_imu_b_f = tuple(float(x) for x in self._l_imu_b)
         self._l_imu_ant_b = self._l_ant_b - self._l_imu_b  # antenna relative to the IMU
         self._tuning: EkfTuning | None = None
+        # lost IMU samples were bridged by one held sample: the INS position and velocity then
+        # carry the unknown motion of the gap (0.3 m/s in a 0.5 s gap while braking), not
+        # what P says; the next fix resets them (as after an outage)
+        self._imu_gaps_at_reset = 0
         self._q_c = np.zeros(N_STATES)
         self._ins: Strapdown | None = None
-        self._p: Array | None = None  # error covariance (15, 15); None until heading is known
+        self._p: Array | None = None  # error covariance (18, 18); None until heading is known
+        # the receiver's position error (FIX states): estimate, white and wandering variance
+        self._fix_err_ned_m = np.zeros(3)
+        self._fix_var_white_m2 = np.zeros(3)
+        self._fix_var_wander_m2 = np.zeros(3)
         self._hist: _History | None = None
         self._held = HeldEpochs()  # epochs ahead of the IMU
         self._imu = ImuHealth(self.cfg.imu_fault_s)  # timing, alarm, saturation, FAULT
@@ -238,7 +266,9 @@ class EkfEngine:
         assert self._ins is not None and self._p is not None
         t_s, dv_f, c_dt = self._ins.take_interval()
         if t_s > 0.0:
-            predict(self._p, transition_matrix(t_s, dv_f, c_dt), self._q_c, t_s)
+            decay = math.exp(-t_s / self.cfg.gnss_error_correlation_s)
+            self._fix_err_ned_m *= decay
+            predict(self._p, transition_matrix(t_s, dv_f, c_dt, decay), self._q_c, t_s)
 
     def _align_tilt(self, t: float, w: list[float], f: list[float]) -> None:
         """Roll/pitch from the mean specific force of a quiet window; gyro bias if at rest.
@@ -315,13 +345,13 @@ class EkfEngine:
         if self._p is None:
             self._align_heading(fix, t_e, row)
             return
+        if self._hist.spacing(t_e) > MAX_IMU_STEP_S:
+            return  # within an IMU gap: the history there is a straight line, no state
         self._predict()
         p = self._p
         sig_pos = self._position_sigma(fix)
-        quality_changed = self._last_quality not in (None, fix.quality)
-        if quality_changed and sig_pos is not None:
-            # a quality change is a new receiver solution: an independent position error
-            p[POS, POS] += np.diag(sig_pos**2)
+        if sig_pos is not None:
+            self._set_fix_error_model(sig_pos, restart=self._last_quality != fix.quality)
         self._last_quality = fix.quality
         p_ant = self._antenna_ned(fix) if sig_pos is not None else None
         if p_ant is not None:
@@ -330,14 +360,24 @@ class EkfEngine:
         since = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
         if sig_pos is not None and (
             since > self.cfg.reset_outage_s
+            or self._imu.timing.gaps != self._imu_gaps_at_reset
             or self._track.reset_due(t_e, self.cfg.reset_rejections, self.cfg.position_reset_s)
         ):
-            self._reset_from_fix(fix, t_e, row, sig_pos)
+            self._reset_from_fix(fix, t_e, row)
             return
         c_e = row[_C].reshape(3, 3)
         measurements: list[Measurement] = []
         if sig_pos is not None and p_ant is not None:
-            measurements.append(fuse_position(row[_P], c_e, self._l_imu_ant_b, p_ant, sig_pos))
+            measurements.append(
+                fuse_position(
+                    row[_P],
+                    c_e,
+                    self._l_imu_ant_b,
+                    p_ant,
+                    np.sqrt(self._fix_var_white_m2),
+                    self._fix_err_ned_m,
+                )
+            )
         vel = self._gnss_velocity(fix)
         if vel is not None:
             w_e, sig_lever = self._lever_rate(t_e)
@@ -423,6 +463,7 @@ class EkfEngine:
         dx_now[POS] += dx[VEL] * age_s
         rot = self._ins.inject(dx_now)
         self._hist.shift(dx[POS], dx[VEL], rot, t_e)
+        self._fix_err_ned_m += dx[FIX]
 
     def _align_heading(self, fix: GnssFix, t_e: float, row: Array) -> None:
         """First heading from HDT, or from the course at ``align_min_speed_mps`` (forward).
@@ -452,7 +493,6 @@ class EkfEngine:
         row_aligned = hist.at(t_e)
         assert row_aligned is not None
         self._p = np.zeros((N_STATES, N_STATES))
-        self._set_from_fix(fix, t_e, row_aligned, sig_pos)
         ins.take_interval()
         sig_bg = self._levelled_gyro_bias_sigma_rps()
         sig_ba = tun.sigma_bias_a0_mps2
@@ -470,6 +510,8 @@ class EkfEngine:
         p[ATT, ATT] += sig_ba**2 * m @ m.T
         p[ATT, BA] = sig_ba**2 * m
         p[BA, ATT] = p[ATT, BA].T
+        self._set_fix_error_model(sig_pos, restart=True)
+        self._set_from_fix(fix, t_e, row_aligned)
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
 
@@ -494,7 +536,7 @@ class EkfEngine:
             (tun.sigma_bias_a0_mps2 / GRAVITY_MPS2) ** 2 + self._sigma_level_rad**2 + drift**2
         )
 
-    def _reset_from_fix(self, fix: GnssFix, t_e: float, row: Array, sig_pos: Array) -> None:
+    def _reset_from_fix(self, fix: GnssFix, t_e: float, row: Array) -> None:
         """Recovery after a long outage or a run of rejections: position/velocity from GNSS.
 
         Attitude and biases are kept; position and velocity restart from the fix with their
@@ -504,22 +546,54 @@ class EkfEngine:
         log.warning(
             "GNSS position at t=%.3f: position and velocity reset to it (%s)",
             t_e,
-            "positions rejected" if self._track.rejecting_since_s is not None else "an outage",
+            "positions rejected"
+            if self._track.rejecting_since_s is not None
+            else "an IMU gap"
+            if self._imu.timing.gaps != self._imu_gaps_at_reset
+            else "an outage",
         )
-        self._set_from_fix(fix, t_e, row, sig_pos)
+        self._set_from_fix(fix, t_e, row)
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
 
-    def _set_from_fix(self, fix: GnssFix, t_e: float, row: Array, sig_pos: Array) -> None:
-        """INS position/velocity from the fix at ``t_e``, moved to now; P rows reset."""
+    def _set_fix_error_model(self, sig_pos: Array, restart: bool) -> None:
+        """The white and wandering parts of this fix's error (:func:`split_fix_variance`)
+        and the wander's driving noise; ``restart``: a new quality is a new receiver solution,
+        its error independent of everything so far (FIX rows of P reset)."""
+        p = self._p
+        assert p is not None
+        for i in range(3):
+            self._fix_var_white_m2[i], self._fix_var_wander_m2[i] = split_fix_variance(
+                float(sig_pos[i]), self.cfg.gnss_white_share
+            )
+        self._q_c[FIX] = 2.0 * self._fix_var_wander_m2 / self.cfg.gnss_error_correlation_s
+        if restart:
+            p[FIX, :] = 0.0
+            p[:, FIX] = 0.0
+            p[FIX, FIX] = np.diag(self._fix_var_wander_m2)
+            self._fix_err_ned_m[:] = 0.0
+
+    def _set_from_fix(self, fix: GnssFix, t_e: float, row: Array) -> None:
+        """INS position/velocity from the fix at ``t_e``, moved to now; P rows reset.
+
+        The new errors are the fix's, carried through the lever arm with the attitude and
+        gyro bias of the moment: dp = -b - w + [C l]x phi, dv = -e_v + [C (w x l)]x phi -
+        C [l]x dbg (the measurement models read backwards). Both correlations are kept:
+        position and fix-error states start correlated, so that a fix of the same solution
+        does not count twice; dropping the attitude term let the next fixes of an RTK
+        solution "observe" roll through a 2 m lever arm on a straight line (0.3 deg of
+        roll error reported as 0.12 deg)."""
         ins, hist, p = self._ins, self._hist, self._p
         assert ins is not None and hist is not None and p is not None and self._t_s is not None
         c_e = row[_C].reshape(3, 3)
-        p_imu = self._antenna_ned(fix) - c_e @ self._l_imu_ant_b
+        l_b = self._l_imu_ant_b
+        c_l = c_e @ l_b
+        p_imu = self._antenna_ned(fix) - c_l
         vel = self._gnss_velocity(fix)
         v_ne = vel[0] if vel is not None else np.zeros(2)
         w_e = self._lever_rate(t_e)[0]
-        v_imu = np.array([v_ne[0], v_ne[1], 0.0]) - c_e @ cross3(w_e, self._l_imu_ant_b)
+        v_lever = c_e @ cross3(w_e, l_b)
+        v_imu = np.array([v_ne[0], v_ne[1], 0.0]) - v_lever
         age_s = self._t_s - t_e
         p_now = p_imu + v_imu * age_s
         dp = p_now - np.array(ins.p_ned_m)
@@ -527,12 +601,29 @@ class EkfEngine:
         ins.p_ned_m = [float(x) for x in p_now]
         ins.v_ned_mps = [float(x) for x in v_imu]
         hist.shift(dp, dv, np.eye(3))
-        for s in (POS, VEL):
+        for s in (POS, VEL, FIX):
             p[s, :] = 0.0
             p[:, s] = 0.0
-        p[POS, POS] = np.diag(sig_pos**2)
-        p[VEL, VEL] = self.cfg.align_vel_sigma_mps**2 * np.eye(3)
+        # (dp, dv) = m (phi, dbg) + the fix's own errors
+        m = np.zeros((6, N_STATES))
+        m[3:6, ATT] = skew(v_lever)
+        m[3:6, BG] = -c_e @ skew(l_b)
+        m[0:3, ATT] = skew(c_l) + age_s * m[3:6, ATT]
+        m[0:3, BG] = age_s * m[3:6, BG]
+        pv = slice(POS.start, VEL.stop)
+        cross = m @ p
+        p[pv, :] = cross
+        p[:, pv] = cross.T
+        p[pv, pv] = cross @ m.T
+        wander = np.diag(self._fix_var_wander_m2)
+        p[POS, POS] += np.diag(self._fix_var_white_m2) + wander
+        p[POS, FIX] = -wander
+        p[FIX, POS] = -wander
+        p[FIX, FIX] = wander
+        self._fix_err_ned_m[:] = 0.0
+        p[VEL, VEL] += self.cfg.align_vel_sigma_mps**2 * np.eye(3)
         self._t_pos_epoch_s = t_e
+        self._imu_gaps_at_reset = self._imu.timing.gaps
         self._track.accepted()
 
     def _antenna_ned(self, fix: GnssFix) -> Array:
@@ -543,11 +634,12 @@ class EkfEngine:
         return np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
 
     def _position_sigma(self, fix: GnssFix) -> Array | None:
-        """Position 1-sigma NED (3,): GST when sent, else the quality's default; scaled."""
-        sig = fix.position_sigma_m
+        """Position 1-sigma NED (3,) of the fix (:func:`fix_position_sigma_m`: GST when
+        sent, else the quality's default scaled by HDOP and the age of corrections)."""
+        sig = fix_position_sigma_m(fix)
         if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or sig is None:
             return None
-        return self.cfg.gnss_sigma_scale * np.maximum(np.array(sig), 1e-3)
+        return np.maximum(np.array(sig), 1e-3)
 
     def _gnss_velocity(self, fix: GnssFix) -> tuple[Array, float] | None:
         """Horizontal antenna velocity (2,) and its 1-sigma, from SOG/COG.

@@ -13,13 +13,19 @@ which the filter estimates anyway; transport rate at 5 m/s is v/R = 8e-7 rad/s; 
 acceleration 2 w_ie v = 7e-4 m/s^2 at 5 m/s is below the accelerometer bias being estimated.
 Gravity is constant over a field.
 
-Error state (15, :data:`POS` ... :data:`BG`), true = nominal + error, except attitude:
+Error state (18, :data:`POS` ... :data:`FIX`), true = nominal + error, except attitude:
 C_bn_true = (I + [phi]x) C_bn, phi a small rotation in NED. Continuous error dynamics
 
     d(dp)/dt = dv
     d(dv)/dt = -[f_n]x phi - C_bn dba - C_bn n_a
     d(phi)/dt = -C_bn dbg - C_bn n_g
     d(dba)/dt = w_ba,   d(dbg)/dt = w_bg   (random walks: see EkfTuning)
+    d(db)/dt = -db / tau_fix + w_fix       (the receiver's position error, NED)
+
+The last three states are the error of the receiver's current position solution, first-order
+Gauss-Markov (:mod:`gateway.estimation.gnss_error`): RTK float and DGNSS errors wander over
+tens of seconds; taken as white, a minute of them collapsed the position variance and the
+filter followed the wander. The engine restarts them when the fix quality changes.
 
 Measurement models return a :class:`Measurement` (z, H, R) as in pyins; :func:`correct`
 does the algebra for any of them (sequential, Joseph form, NIS gate).
@@ -58,7 +64,8 @@ VEL = slice(3, 6)  # velocity error, NED, m/s
 ATT = slice(6, 9)  # attitude error phi, NED, rad
 BA = slice(9, 12)  # accelerometer bias error, body, m/s^2
 BG = slice(12, 15)  # gyro bias error, body, rad/s
-N_STATES = 15
+FIX = slice(15, 18)  # error of the receiver's position solution, NED, m
+N_STATES = 18
 
 #: Low-pass time constant of the body rate used for lever-arm velocities at the current time:
 #: one sample of ARW noise is 0.5 deg/s, 2.5 cm/s at a 3 m lever arm.
@@ -67,7 +74,7 @@ RATE_LP_TAU_S = 0.05
 ORTHO_EVERY = 256
 
 _I3 = np.eye(3)
-_I15 = np.eye(N_STATES)
+_I_N = np.eye(N_STATES)
 
 
 @cache
@@ -114,7 +121,7 @@ def chi2_sf(x: float, dof: int) -> float:
 class Measurement:
     """One measurement linearised about the nominal state: z = H dx + v, v ~ N(0, R).
 
-    ``z`` shape (m,) innovation (measured minus predicted), ``h`` shape (m, 15), ``r`` (m, m).
+    ``z`` shape (m,) innovation (measured minus predicted), ``h`` shape (m, 18), ``r`` (m, m).
     """
 
     name: str
@@ -133,7 +140,7 @@ class Correction:
 
 
 def correct(p: Array, dx: Array, m: Measurement, gate_sigma: float) -> Correction:
-    """Fuse ``m`` into the error state ``dx`` (15,) and covariance ``p`` (15, 15), in place.
+    """Fuse ``m`` into the error state ``dx`` (18,) and covariance ``p`` (18, 18), in place.
 
     Sequential form: the innovation is taken relative to the error already estimated in this
     batch (z - H dx), so several measurements of one epoch share one feedback. Rejected if
@@ -148,7 +155,7 @@ def correct(p: Array, dx: Array, m: Measurement, gate_sigma: float) -> Correctio
         return Correction(m.name, nis, False)
     k = ph @ s_inv
     dx += k @ z
-    ikh = _I15 - k @ m.h
+    ikh = _I_N - k @ m.h
     p[:] = ikh @ p @ ikh.T + k @ m.r @ k.T
     p[:] = 0.5 * (p + p.T)
     return Correction(m.name, nis, True)
@@ -238,7 +245,7 @@ class Strapdown:
         return out
 
     def inject(self, dx: Array) -> Array:
-        """Closed-loop feedback of the error estimate ``dx`` (15,); returns the rotation (3, 3).
+        """Closed-loop feedback of the error estimate ``dx`` (18,); returns the rotation (3, 3).
 
         Position, velocity and biases add; attitude is reset by the small rotation
         C <- exp([phi]x) C. The error state is then zero by definition (the caller drops dx);
@@ -261,14 +268,17 @@ class Strapdown:
 # --- error-state propagation ---------------------------------------------------------------
 
 
-def transition_matrix(t_s: float, dv_f_ned_mps: Array, c_dt: Array) -> Array:
-    """Phi (15, 15) over an interval T from the IMU sums of :meth:`Strapdown.take_interval`.
+def transition_matrix(
+    t_s: float, dv_f_ned_mps: Array, c_dt: Array, fix_decay: float = 1.0
+) -> Array:
+    """Phi (18, 18) over an interval T from the IMU sums of :meth:`Strapdown.take_interval`.
 
     A = F T with F averaged over the interval (f_n T = integral f_n dt, C T = integral C dt);
     A^4 = 0 (the chain bg -> phi -> v -> p is three long), so I + A + A^2/2 + A^3/6 is
     exp(A) exactly for the averaged F. Averaging F over up to ~50 ms instead of stepping it at
     every sample is checked in tests/test_ekf.py and by the `ekf-cov-every-sample` engine of
-    benchmarks/accuracy.py.
+    benchmarks/accuracy.py. The fix-error states are uncoupled: they decay by ``fix_decay``,
+    exp(-T / tau_fix).
     """
     a = np.zeros((N_STATES, N_STATES))
     a[POS, VEL] = t_s * _I3
@@ -276,13 +286,16 @@ def transition_matrix(t_s: float, dv_f_ned_mps: Array, c_dt: Array) -> Array:
     a[VEL, BA] = -c_dt
     a[ATT, BG] = -c_dt
     a2 = a @ a
-    return _I15 + a + 0.5 * a2 + (a2 @ a) / 6.0
+    phi = _I_N + a + 0.5 * a2 + (a2 @ a) / 6.0
+    phi[FIX, FIX] = fix_decay * _I3
+    return phi
 
 
 def process_noise_psd(tuning: EkfTuning) -> Array:
-    """Diagonal continuous process noise Q_c (15,) of the error state.
+    """Diagonal continuous process noise Q_c (18,) of the error state.
 
     White accel/gyro noise enters dv and phi through C_bn; being isotropic, C q I C^T = q I.
+    The fix-error states' driving noise depends on the fix: the engine sets it per epoch.
     """
     q = np.zeros(N_STATES)
     q[VEL] = tuning.q_accel_m2_per_s3
@@ -303,17 +316,25 @@ def predict(p: Array, phi: Array, q_c: Array, t_s: float) -> None:
 
 
 def fuse_position(
-    p_ned_m: Array, c_bn: Array, l_ant_b: Array, p_ant_meas_ned_m: Array, sigma_ned_m: Array
+    p_ned_m: Array,
+    c_bn: Array,
+    l_ant_b: Array,
+    p_ant_meas_ned_m: Array,
+    white_sigma_ned_m: Array,
+    fix_error_ned_m: Array,
 ) -> Measurement:
-    """Antenna position: p_ant = p + C l, l = antenna relative to the IMU (body, m).
+    """Antenna position as the receiver reports it: p + C l + b, l = antenna relative to the
+    IMU (body, m), b the receiver's position error (its wander; ``white_sigma_ned_m`` the rest).
 
-    Shapes (3,) except ``c_bn`` (3, 3). dp_ant = dp - [C l]x phi.
+    Shapes (3,) except ``c_bn`` (3, 3). dz = dp - [C l]x phi + db.
     """
     c_l = c_bn @ l_ant_b
     h = np.zeros((3, N_STATES))
     h[:, POS] = _I3
     h[:, ATT] = -skew(c_l)
-    return Measurement("position", p_ant_meas_ned_m - (p_ned_m + c_l), h, np.diag(sigma_ned_m**2))
+    h[:, FIX] = _I3
+    z = p_ant_meas_ned_m - (p_ned_m + c_l + fix_error_ned_m)
+    return Measurement("position", z, h, np.diag(white_sigma_ned_m**2))
 
 
 def fuse_velocity(

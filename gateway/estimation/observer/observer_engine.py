@@ -36,16 +36,13 @@ from gateway.estimation.attitude import (
 from gateway.estimation.engine_base import HeldEpochs, ImuHealth, common_fields
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
+from gateway.estimation.gnss_error import fix_position_sigma_m, fix_velocity_sigma_mps
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import reference_from_antenna, velocity_at
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
-from gateway.estimation.observer.position_channel import (
-    PositionChannel,
-    fix_position_sigma_m,
-    fix_velocity_sigma_mps,
-)
+from gateway.estimation.observer.position_channel import PositionChannel
 from gateway.estimation.observer.tereshkov import TereshkovObserver
 from gateway.estimation.solution import Convergence, Mode, Solution, navigation_mode
 

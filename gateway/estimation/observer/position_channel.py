@@ -7,13 +7,11 @@ channel decides how much of each fix's position residual to take. Per axis (nort
 down) a two-state Kalman filter in plain floats:
 
 - ``p``: the engine's position; its error grows between fixes with the dead-reckoning noise;
-- ``b``: the error of the receiver's current solution. RTK float, DGNSS and single-point
-  errors are not white: multipath and atmosphere residuals wander over tens of seconds, so
-  a fix error is modelled as first-order Gauss-Markov (``correlation_s``) plus a small white
-  part. Averaging a minute of float fixes then does not pretend to remove their error (a
-  white model would let the variance collapse to sigma^2 / N and follow the wander), and
-  when RTK fixed returns the carried variance is still large: the first fixed epochs get a
-  gain near 1.
+- ``b``: the error of the receiver's current solution, first-order Gauss-Markov
+  (``correlation_s``) plus a small white part (:mod:`gateway.estimation.gnss_error`, the
+  model the EKF's fix-error states use too). Averaging a minute of float fixes then does
+  not pretend to remove their error, and when RTK fixed returns the carried variance is
+  still large: the first fixed epochs get a gain near 1.
 
 A new fix quality is a new receiver solution with an independent error: ``b`` restarts.
 """
@@ -23,38 +21,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix
-
-#: HDOP the quality's default sigmas (no GST) describe; a larger HDOP scales them up.
-NOMINAL_HDOP = 1.0
-#: Corrections up to this old are normal (1 Hz RTCM over a radio link with drop-outs).
-NOMINAL_AGE_S = 5.0
-#: Beyond it the corrected solution degrades: its sigma grows by this share per second
-#: (ionosphere and orbit decorrelation: an RTK fix 20 s old is ~1.75x as uncertain).
-AGE_GROWTH_PER_S = 0.05
-#: Corrected qualities whose sigma depends on the age of the corrections.
-CORRECTED = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
-
-
-def fix_position_sigma_m(fix: GnssFix) -> tuple[float, float, float] | None:
-    """Position 1-sigma north, east, down of ``fix``: GST when sent; else the quality's
-    default (:data:`drivers.samples.DEFAULT_GNSS_SIGMAS`) scaled by HDOP above
-    :data:`NOMINAL_HDOP` and grown with the age of corrections beyond :data:`NOMINAL_AGE_S`."""
-    sig = fix.position_sigma_m
-    if sig is None or fix.sigma_n_m is not None:
-        return sig
-    scale = 1.0
-    if fix.hdop is not None and fix.hdop > NOMINAL_HDOP:
-        scale = fix.hdop / NOMINAL_HDOP
-    if fix.quality in CORRECTED and fix.age_s is not None and fix.age_s > NOMINAL_AGE_S:
-        scale *= 1.0 + AGE_GROWTH_PER_S * (fix.age_s - NOMINAL_AGE_S)
-    return (sig[0] * scale, sig[1] * scale, sig[2] * scale)
-
-
-def fix_velocity_sigma_mps(fix: GnssFix, floor_mps: float) -> float:
-    """Horizontal velocity 1-sigma per axis: the quality's default, at least ``floor_mps``."""
-    row = DEFAULT_GNSS_SIGMAS.get(int(fix.quality))
-    return max(floor_mps, row[2]) if row is not None else floor_mps
+from drivers.samples import FixQuality
+from gateway.estimation.gnss_error import split_fix_variance
 
 
 @dataclass(slots=True)
@@ -110,11 +78,8 @@ class PositionChannel:
 
     def set_fix(self, quality: FixQuality, sigma_ned_m: tuple[float, float, float]) -> None:
         """The sigma of the fix about to be used; a new quality restarts the fix error."""
-        w2 = self._white_share * self._white_share
         for i in range(3):
-            s2 = sigma_ned_m[i] * sigma_ned_m[i]
-            self._var_w[i] = w2 * s2
-            self._var_b[i] = (1.0 - w2) * s2
+            self._var_w[i], self._var_b[i] = split_fix_variance(sigma_ned_m[i], self._white_share)
         if quality != self._quality:
             self._quality = quality
             for i in range(3):

@@ -1,0 +1,51 @@
+"""The receiver's position error by fix quality: its sigma, and its white and wandering parts.
+
+One model for both engines (the observer's position channel and the EKF's fix-error states):
+RTK float, DGNSS and single-point errors are not white. Multipath and atmosphere residuals
+wander over tens of seconds, so a fix error is first-order Gauss-Markov (a correlation time)
+plus a small white share. A filter that took it as white would average a minute of float
+fixes to sigma^2 / N, believe it, and follow the wander.
+"""
+
+from __future__ import annotations
+
+from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix
+
+#: HDOP the quality's default sigmas (no GST) describe; a larger HDOP scales them up.
+NOMINAL_HDOP = 1.0
+#: Corrections up to this old are normal (1 Hz RTCM over a radio link with drop-outs).
+NOMINAL_AGE_S = 5.0
+#: Beyond it the corrected solution degrades: its sigma grows by this share per second
+#: (ionosphere and orbit decorrelation: an RTK fix 20 s old is ~1.75x as uncertain).
+AGE_GROWTH_PER_S = 0.05
+#: Corrected qualities whose sigma depends on the age of the corrections.
+CORRECTED = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
+
+
+def fix_position_sigma_m(fix: GnssFix) -> tuple[float, float, float] | None:
+    """Position 1-sigma north, east, down of ``fix``: GST when sent; else the quality's
+    default (:data:`drivers.samples.DEFAULT_GNSS_SIGMAS`) scaled by HDOP above
+    :data:`NOMINAL_HDOP` and grown with the age of corrections beyond :data:`NOMINAL_AGE_S`."""
+    sig = fix.position_sigma_m
+    if sig is None or fix.sigma_n_m is not None:
+        return sig
+    scale = 1.0
+    if fix.hdop is not None and fix.hdop > NOMINAL_HDOP:
+        scale = fix.hdop / NOMINAL_HDOP
+    if fix.quality in CORRECTED and fix.age_s is not None and fix.age_s > NOMINAL_AGE_S:
+        scale *= 1.0 + AGE_GROWTH_PER_S * (fix.age_s - NOMINAL_AGE_S)
+    return (sig[0] * scale, sig[1] * scale, sig[2] * scale)
+
+
+def fix_velocity_sigma_mps(fix: GnssFix, floor_mps: float) -> float:
+    """Horizontal velocity 1-sigma per axis: the quality's default, at least ``floor_mps``."""
+    row = DEFAULT_GNSS_SIGMAS.get(int(fix.quality))
+    return max(floor_mps, row[2]) if row is not None else floor_mps
+
+
+def split_fix_variance(sigma_m: float, white_share: float) -> tuple[float, float]:
+    """(white, wandering) variance of a fix error of 1-sigma ``sigma_m``: ``white_share`` of
+    the sigma is independent from epoch to epoch, the rest is the Gauss-Markov wander."""
+    s2 = sigma_m * sigma_m
+    w2 = white_share * white_share
+    return w2 * s2, (1.0 - w2) * s2
