@@ -110,6 +110,22 @@ def test_the_panels_hold_the_run(run: OutputRun) -> None:
     assert np.nanmax(np.asarray(pos.get_ydata())[np.asarray(pos.get_xdata()) > 60]) < 0.3
 
 
+def test_the_truth_is_drawn_over_the_logs_span_only(run: OutputRun, tmp_path: Path) -> None:
+    """A demo plays part of a simulated run: its plot ends where the log ends, not where the
+    truth does."""
+    lines = run.log.read_text().splitlines(keepends=True)
+    t0 = float(lines[0].split(")")[0].strip("("))
+    part = tmp_path / "first-40-s.log"
+    part.write_text("".join(x for x in lines if float(x.split(")")[0].strip("(")) < t0 + 40.0))
+    series = read_run(part)
+    truth = Truth.load(run.truth)
+    assert truth.t[-1] - series.t0 > 100.0  # the truth goes on well past the log
+    for line in panels(run_figure(series, truth))["gyro"].get_lines():
+        if line.get_linestyle() == "--":
+            x = np.asarray(line.get_xdata())
+            assert x[0] >= -0.1 and x[-1] <= series.t_end - series.t0 + 0.1
+
+
 def test_without_truth_no_error_panels(run: OutputRun) -> None:
     axes = panels(run_figure(read_run(run.log)))
     assert set(axes) == set(TITLES) - {"attitude_error", "position_error"}

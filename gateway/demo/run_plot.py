@@ -198,10 +198,11 @@ def _biases(gyro_ax: Axes, accel_ax: Axes, run: RunSeries, truth: Truth | None) 
         t = run.times(message) - run.t0
         for i, axis in enumerate("xyz"):
             (line,) = ax.plot(t, run.numbers(message, prefix + axis.upper()), label=axis)
-            if truth is not None:
-                true = getattr(truth, column)[:, i] * scale
-                ax.plot(truth.t[::TRUTH_STEP] - run.t0, true[::TRUTH_STEP], "--", lw=0.8,
-                        color=line.get_color())  # fmt: skip
+            if truth is not None:  # over the log's span only (a demo plays part of a run)
+                first, last = np.searchsorted(truth.t, (run.t0, run.t_end))
+                rows = slice(int(first), int(last), TRUTH_STEP)
+                true = getattr(truth, column)[rows, i] * scale
+                ax.plot(truth.t[rows] - run.t0, true, "--", lw=0.8, color=line.get_color())
         for flag in flags:
             for rise in _rises(run, flag):
                 ax.axvline(rise, color="k", lw=0.8, ls=":")
