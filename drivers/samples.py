@@ -30,6 +30,11 @@ class FixQuality(IntEnum):
     SIMULATION = 8
 
 
+#: Qualities computed with a reference station's corrections (GGA's station id and age of
+#: corrections are theirs; the corrections' age degrades them).
+CORRECTED_QUALITIES = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
+
+
 @dataclass(frozen=True, slots=True)
 class ImuSample:
     """One IMU output sample (gyro and accel of the same SEQ), body frame FRD, SI.

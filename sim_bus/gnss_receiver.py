@@ -37,7 +37,7 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.nmea import nmea_checksum
-from drivers.samples import FixQuality
+from drivers.samples import CORRECTED_QUALITIES, FixQuality
 from gateway.estimation.geodesy import ned_to_lla
 from sim_bus.truth import Truth
 
@@ -55,9 +55,6 @@ MODE_INDICATOR: Mapping[FixQuality, str] = {
     FixQuality.RTK_FLOAT: "F",
     FixQuality.DEAD_RECKONING: "E",
 }
-
-# Qualities with a base-station correction stream: GGA carries its age and station ID.
-CORRECTED = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
 
 
 @dataclass(frozen=True, slots=True)
@@ -308,7 +305,7 @@ def _format_epochs(
         else:
             lat, ns = lat_txt[i]
             lon, ew = lon_txt[i]
-            corr = f"{age_s[i]:.1f},{sid}" if q in CORRECTED else ","
+            corr = f"{age_s[i]:.1f},{sid}" if q in CORRECTED_QUALITIES else ","
             epoch.append(
                 f"{tk}GGA,{t},{lat},{'N' if ns else 'S'},{lon},{'E' if ew else 'W'},{q_int},"
                 f"{sats_n[i]:02d},{hdop_v[i]:.2f},{alt_msl[i]:.3f},M,{sep},M,{corr}"

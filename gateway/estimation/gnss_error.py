@@ -9,7 +9,7 @@ fixes to sigma^2 / N, believe it, and follow the wander.
 
 from __future__ import annotations
 
-from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix
+from drivers.samples import CORRECTED_QUALITIES, DEFAULT_GNSS_SIGMAS, GnssFix
 
 #: HDOP the quality's default sigmas (no GST) describe; a larger HDOP scales them up.
 NOMINAL_HDOP = 1.0
@@ -18,8 +18,6 @@ NOMINAL_AGE_S = 5.0
 #: Beyond it the corrected solution degrades: its sigma grows by this share per second
 #: (ionosphere and orbit decorrelation: an RTK fix 20 s old is ~1.75x as uncertain).
 AGE_GROWTH_PER_S = 0.05
-#: Corrected qualities whose sigma depends on the age of the corrections.
-CORRECTED = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
 
 
 def fix_position_sigma_m(fix: GnssFix) -> tuple[float, float, float] | None:
@@ -32,7 +30,7 @@ def fix_position_sigma_m(fix: GnssFix) -> tuple[float, float, float] | None:
     scale = 1.0
     if fix.hdop is not None and fix.hdop > NOMINAL_HDOP:
         scale = fix.hdop / NOMINAL_HDOP
-    if fix.quality in CORRECTED and fix.age_s is not None and fix.age_s > NOMINAL_AGE_S:
+    if fix.quality in CORRECTED_QUALITIES and fix.age_s is not None and fix.age_s > NOMINAL_AGE_S:
         scale *= 1.0 + AGE_GROWTH_PER_S * (fix.age_s - NOMINAL_AGE_S)
     return (sig[0] * scale, sig[1] * scale, sig[2] * scale)
 

@@ -16,7 +16,7 @@ import can
 import cantools
 
 import dbc
-from drivers.samples import FixQuality, Vec3
+from drivers.samples import CORRECTED_QUALITIES, FixQuality, Vec3
 from drivers.units import SECONDS_PER_DAY, wrap_pi
 from gateway.estimation.solution import Solution
 from gateway.isobus.fast_packet import FastPacketFragmenter
@@ -89,8 +89,6 @@ GNSS_TYPE_OF_TALKER = {"GP": GnssType.GPS, "GL": GnssType.GLONASS, "GA": GnssTyp
 TYPED_BY_TALKER = frozenset(
     {FixQuality.GNSS, FixQuality.PPS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT}
 )
-#: Fix qualities computed with a reference station's corrections: GGA's station id is theirs.
-CORRECTED = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
 
 
 @dataclass(frozen=True, slots=True)
@@ -174,7 +172,7 @@ def gnss_position(s: Solution, _: LoopStatus, sid: int) -> Values:
     quality = s.fix_quality
     method = None if quality is None else GNSS_METHOD_OF_FIX[quality]
     gnss_type = GNSS_TYPE_OF_TALKER.get(s.talker or "") if quality in TYPED_BY_TALKER else None
-    corrected = quality in CORRECTED
+    corrected = quality in CORRECTED_QUALITIES
     station = s.reference_station_id if corrected else None
     age = s.age_s if corrected else None  # some receivers send 0.0 without corrections
     return {
