@@ -185,10 +185,7 @@ class FusionCore:
                 )  # fmt: skip
                 self._last_saturation_log = sample.t
             self._saturated = True
-            polled = self.claimer.poll(sample.t)
-            if sample.t >= self.network.next_heartbeat_t:
-                polled += self._heartbeat(sample.t)
-            return self._counted(chain(polled, self._fault(sample.t)))
+            return self._counted(chain(self._timers(sample.t), self._fault(sample.t)))
         last = self._last_sample
         gap = last is not None and abs(sample.t - last.t) >= RESTART_GAP_S
         if (gap or self._saturated) and self._make_engine is not None:
@@ -203,9 +200,7 @@ class FusionCore:
         self._saturated = False
         self._last_sample = sample
         self.engine.imu(sample)
-        polled = self.claimer.poll(sample.t)
-        if sample.t >= self.network.next_heartbeat_t:  # one comparison per sample
-            polled += self._heartbeat(sample.t)
+        polled = self._timers(sample.t)
         if not (self.claimer.claimed and self.scheduler.is_due(sample.t)):
             return self._counted(polled) if polled else NOTHING  # most samples send nothing
         sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
@@ -228,14 +223,15 @@ class FusionCore:
 
     def poll(self, now: float) -> Iterator[can.Message]:
         """Advance timers without an input (the live loop calls this when the IMU is silent)."""
+        return self._counted(chain(self._timers(now), self._silent_status(now)))
+
+    def _timers(self, now: float) -> list[can.Message]:
+        """What the claim's timers send, and the heartbeat when it is due (one comparison
+        per sample otherwise), equipment status FAULT while NAVGW_STATUS says FAULT."""
         polled = self.claimer.poll(now)
         if now >= self.network.next_heartbeat_t:
-            polled += self._heartbeat(now)
-        return self._counted(chain(polled, self._silent_status(now)))
-
-    def _heartbeat(self, now: float) -> list[can.Message]:
-        """The heartbeat that is due, equipment status FAULT while NAVGW_STATUS says FAULT."""
-        return self.network.heartbeat(now, fault=self._told_mode is Mode.FAULT)
+            polled += self.network.heartbeat(now, fault=self._told_mode is Mode.FAULT)
+        return polled
 
     def _silent_status(self, now: float) -> Iterable[can.Message]:
         """NAVGW_STATUS alone, FAULT, when no IMU sample has come for IMU_SILENT_S."""
