@@ -60,6 +60,10 @@ E_NOISE_TAU_S = 10.0
 LEVER_RATE_WINDOW_S = 0.1
 #: Rate of turn output: mean body rate over this long before the last sample.
 OUTPUT_RATE_WINDOW_S = 0.05
+#: Height loop time constant, s: GNSS gives no vertical velocity and the z accelerometer bias
+#: is not estimated, so the height (a double integrator) needs a firm loop whatever the fix's
+#: sigma: weighed by a float fix's 0.4 m, it drifted 60 m in a float spell.
+HEIGHT_LOOP_TAU_S = 0.3
 #: Body rate for the stationarity test: mean over this long before the epoch.
 STATIONARY_RATE_WINDOW_S = 0.2
 #: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
@@ -636,10 +640,11 @@ class ObserverEngine:
         The propagated state at t_e is reconstructed from the f_p integral in the history:
         v(t_e) = v_now - (S_f(now) - S_f(t_e)) - g (now - t_e), p(t_e) by the trapezoid.
         Horizontal velocity is reset to the GNSS one at t_e (plus the inertial change since);
-        the position residual is weighed by the position channel's Kalman gain (the fix's
-        sigma against the dead-reckoning error since the last fix, :meth:`_position_gains`);
+        the horizontal residual is weighed by the position channel's Kalman gain (the fix's
+        sigma against the dead-reckoning error since the last fix, :meth:`_predict_position`);
         vertical velocity, which GNSS does not give, comes from the height residual
-        (second-order loop, alpha-beta with beta = alpha^2 / 4, alpha the down-axis gain).
+        (second-order loop, alpha-beta with beta = alpha^2 / 4, alpha = 2 T / tau_h with
+        :data:`HEIGHT_LOOP_TAU_S`, at most 1).
 
         The corrections (dp, dv) are made at t_e and reach the current state through the age
         a = now - t_e: p_now += dp + dv a, v_now += dv. Adding dv to the velocity without its
@@ -691,8 +696,9 @@ class ObserverEngine:
         corr = (0.0, 0.0, 0.0)
         k_d = 0.0
         if verdict == "use":
-            c_n, c_e, c_d, k_d = channel.update(dp)
-            corr = (c_n, c_e, c_d)
+            c_n, c_e = channel.update(dp)
+            k_d = min(1.0, 2.0 * interval_s / HEIGHT_LOOP_TAU_S) if interval_s > 0.0 else 1.0
+            corr = (c_n, c_e, k_d * dp[2])
         elif verdict == "reset":
             channel.reset()
             corr, k_d = (dp[0], dp[1], dp[2]), 1.0
@@ -725,8 +731,7 @@ class ObserverEngine:
         Per horizontal axis: the GNSS-reset velocity's error (the fix's velocity sigma plus
         ``dr_velocity_floor_mps``) times the interval, plus, for the inertial part, the
         acceleration error of the tilt (g sigma_tilt, accelerometer bias included) over the
-        interval squared / 2: 0.1 mm over a 0.1 s epoch, metres over a 20 s outage. The
-        vertical axis takes the same (the height loop has no better velocity).
+        interval squared / 2: 0.1 mm over a 0.1 s epoch, metres over a 20 s outage.
         """
         interval_s = t_e - self._t_position_s
         if interval_s <= 0.0:
@@ -736,8 +741,7 @@ class ObserverEngine:
             fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps), self.cfg.dr_velocity_floor_mps
         )
         sigma_a = GRAVITY_MPS2 * self._sigma_tilt_rad(0.0)
-        sigma_m = sigma_v * interval_s + 0.5 * sigma_a * interval_s * interval_s
-        self._position.predict(interval_s, sigma_m, sigma_m)
+        self._position.predict(interval_s, sigma_v * interval_s + 0.5 * sigma_a * interval_s**2)
 
     def _gate_position(
         self, fix: GnssFix, t_e: float, dp: list[float]

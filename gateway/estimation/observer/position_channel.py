@@ -1,10 +1,11 @@
-"""Reference-point position channel of the observer engine: each fix weighed by its quality.
+"""Reference-point horizontal position channel of the observer engine: each fix weighed by its
+quality.
 
 The product's own extension of seed 000 (the paper uses no positions; docs/ACCURACY.md,
 "Position channel"). The engine dead-reckons the reference point on the GNSS-reset velocity
 (or, in an outage, on the inertial velocity under the wheeled-vehicle constraints) and this
-channel decides how much of each fix's position residual to take. Per axis (north, east,
-down) a two-state Kalman filter in plain floats:
+channel decides how much of each fix's horizontal position residual to take. Per axis (north,
+east) a two-state Kalman filter in plain floats:
 
 - ``p``: the engine's position; its error grows between fixes with the dead-reckoning noise;
 - ``b``: the error of the receiver's current solution, first-order Gauss-Markov
@@ -14,6 +15,11 @@ down) a two-state Kalman filter in plain floats:
   still large: the first fixed epochs get a gain near 1.
 
 A new fix quality is a new receiver solution with an independent error: ``b`` restarts.
+
+Not the height: GNSS gives no vertical velocity and the z accelerometer bias is not
+estimated, so the height is a double integrator that only its loop holds. Weighed like this
+during a float spell (0.4 m vertical sigma, small gains) it drifted 60 m; the engine keeps
+its fixed critically damped height loop.
 """
 
 from __future__ import annotations
@@ -64,52 +70,49 @@ class _Axis:
 
 
 class PositionChannel:
-    """Kalman weights for the fixes' positions, north/east/down (see the module text)."""
+    """Kalman weights for the fixes' horizontal positions, north/east (module text)."""
 
     def __init__(self, correlation_s: float, white_share: float) -> None:
         """``correlation_s``: correlation time of a fix error; ``white_share``: the share of
         a fix's sigma that is white from epoch to epoch (the rest wanders)."""
         self._correlation_s = correlation_s
         self._white_share = white_share
-        self._axes = (_Axis(), _Axis(), _Axis())
+        self._axes = (_Axis(), _Axis())
         self._quality: FixQuality | None = None
-        self._var_b = [0.0, 0.0, 0.0]
-        self._var_w = [0.0, 0.0, 0.0]
+        self._var_b = [0.0, 0.0]
+        self._var_w = [0.0, 0.0]
 
     def set_fix(self, quality: FixQuality, sigma_ned_m: tuple[float, float, float]) -> None:
-        """The sigma of the fix about to be used; a new quality restarts the fix error."""
-        for i in range(3):
+        """The sigma of the fix about to be used (north, east taken); a new quality restarts
+        the fix error."""
+        for i in range(2):
             self._var_w[i], self._var_b[i] = split_fix_variance(sigma_ned_m[i], self._white_share)
         if quality != self._quality:
             self._quality = quality
-            for i in range(3):
+            for i in range(2):
                 self._axes[i].new_solution(self._var_b[i])
 
-    def predict(self, interval_s: float, sigma_h_m: float, sigma_v_m: float) -> None:
-        """Over ``interval_s`` of dead reckoning whose horizontal (per axis) and vertical
-        position errors grew by ``sigma_h_m`` and ``sigma_v_m`` (1-sigma)."""
+    def predict(self, interval_s: float, sigma_h_m: float) -> None:
+        """Over ``interval_s`` of dead reckoning whose position error grew by ``sigma_h_m``
+        (1-sigma, per horizontal axis)."""
         if interval_s <= 0.0:
             return
         decay = math.exp(-interval_s / self._correlation_s)
-        q = (sigma_h_m * sigma_h_m, sigma_h_m * sigma_h_m, sigma_v_m * sigma_v_m)
-        for i in range(3):
-            self._axes[i].predict(q[i], decay, self._var_b[i])
+        q = sigma_h_m * sigma_h_m
+        for i in range(2):
+            self._axes[i].predict(q, decay, self._var_b[i])
 
-    def update(self, dz_ned_m: list[float]) -> tuple[float, float, float, float]:
-        """Fuse the residuals fix - position (NED); returns the position corrections and
-        the down-axis gain (for the vertical velocity loop)."""
+    def update(self, dz_ne_m: list[float]) -> tuple[float, float]:
+        """Fuse the residuals fix - position (north, east); returns the position corrections."""
         ax = self._axes
-        d_gain = (ax[2].p_pp + ax[2].p_pb) / ax[2].innovation_var_m2(self._var_w[2])
         return (
-            ax[0].update(dz_ned_m[0], self._var_w[0]),
-            ax[1].update(dz_ned_m[1], self._var_w[1]),
-            ax[2].update(dz_ned_m[2], self._var_w[2]),
-            d_gain,
+            ax[0].update(dz_ne_m[0], self._var_w[0]),
+            ax[1].update(dz_ne_m[1], self._var_w[1]),
         )
 
     def reset(self) -> None:
         """The position was set to the fix: its error is the fix's (white + wander)."""
-        for i in range(3):
+        for i in range(2):
             a = self._axes[i]
             a.p_pp = self._var_b[i] + self._var_w[i]
             a.p_pb = -self._var_b[i]
@@ -123,7 +126,7 @@ class PositionChannel:
             ax[0].innovation_var_m2(self._var_w[0]) + ax[1].innovation_var_m2(self._var_w[1])
         )
 
-    def sigma_ned_m(self) -> tuple[float, float, float]:
-        """Position 1-sigma north, east, down of the engine's reference point."""
+    def sigma_ne_m(self) -> tuple[float, float]:
+        """Position 1-sigma north, east of the engine's reference point."""
         ax = self._axes
-        return (math.sqrt(ax[0].p_pp), math.sqrt(ax[1].p_pp), math.sqrt(ax[2].p_pp))
+        return (math.sqrt(ax[0].p_pp), math.sqrt(ax[1].p_pp))
