@@ -217,9 +217,11 @@ def test_recovers_after_a_long_outage_by_reset(tmp_path: Path) -> None:
     truth, imu, fixes = simulate(sc, tmp_path)
     eng, tr = trace(truth, imu, fixes, config_for(truth), every=20)
     modes = {round(t): s.mode for t, s in zip(tr.t_s, tr.sol, strict=True)}
-    assert modes[70] is Mode.COASTING and modes[110] is Mode.NAVIGATING
+    assert modes[63] is Mode.COASTING and modes[110] is Mode.NAVIGATING
     coast = [s for t, s in zip(tr.t_s, tr.sol, strict=True) if 61.5 < t < 100.0]
-    assert all(s.convergence.learning_frozen for s in coast)
+    assert all(s.coasting and s.convergence.learning_frozen for s in coast)
+    # the covariance's position sigma: DEGRADED past coast_sigma_m, withheld past 2 m
+    assert modes[90] is Mode.DEGRADED and coast[-1].lat_deg is None
     assert eng.counters.resets == 1
     after = tr.t_s > 102.0
     assert np.abs(tr.err[after, :2]).max() < 0.1

@@ -247,7 +247,7 @@ def test_129029_of_real_receivers(
 def test_while_coasting_no_gnss_type_and_no_station_but_the_geoid() -> None:
     """The guard makes a coasting solution dead reckoning: no satellites' systems, no
     corrections; the geoid separation still holds metres from the last fix."""
-    coasting = OutputGuard().check(replace(FULL, mode=Mode.COASTING))
+    coasting = OutputGuard().check(replace(FULL, mode=Mode.COASTING, coasting=True))
     got = gnss_fields(coasting)
     assert (got["type"], got["stations"], got["station"], got["age"]) == (None, 0, None, None)
     assert got["geoid"] == pytest.approx(47.25, abs=0.01)

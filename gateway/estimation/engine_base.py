@@ -10,13 +10,40 @@ from __future__ import annotations
 import math
 from collections import deque
 from collections.abc import Iterator
-from typing import Any
+from typing import Any, Protocol
 
 from drivers.samples import GnssFix, ImuSample
 from gateway.estimation.solution import ImuTiming
 
 #: Epochs ahead of the IMU kept at most (a receiver far ahead of the IMU is a time fault).
 MAX_HELD_EPOCHS = 16
+
+
+class CoastLimits(Protocol):
+    """The outage limits both engines' configs carry (SPEC 4's integrity rule)."""
+
+    @property
+    def max_coast_s(self) -> float: ...
+    @property
+    def coast_sigma_m(self) -> float: ...
+    @property
+    def max_coast_sigma_m(self) -> float: ...
+
+
+def dead_reckoning_output(
+    coasting_s: float, sigma_h_m: float, limits: CoastLimits
+) -> tuple[bool, bool]:
+    """(the position may go out, it is within COASTING's accuracy) ``coasting_s`` into an
+    outage, its horizontal 1-sigma ``sigma_h_m``.
+
+    A dead-reckoned position is sent as COASTING while its 1-sigma is within
+    ``coast_sigma_m``, as DEGRADED up to ``max_coast_sigma_m``, then "not available"; and
+    never after ``max_coast_s``, whatever the engine believes of its own sigma.
+    """
+    return (
+        coasting_s <= limits.max_coast_s and sigma_h_m <= limits.max_coast_sigma_m,
+        sigma_h_m <= limits.coast_sigma_m,
+    )
 
 
 class ImuHealth:

@@ -70,6 +70,7 @@ class Solution:
     imu_alarm: bool = False
     reversing: bool = False
     stationary: bool = False
+    coasting: bool = False  # GNSS timed out: a position sent is dead reckoning
     is_ekf: bool = False
     convergence: Convergence = Convergence()
 
@@ -125,21 +126,23 @@ def navigation_mode(
     aligned: bool,
     coasting: bool,
     imu_alarm: bool,
+    coast_within_accuracy: bool = True,
     fix: GnssFix | None,
     navigating_fix_qualities: tuple[int, ...],
     imu_gap: bool = False,
     gnss_glitch: bool = False,
 ) -> Mode:
     """The mode every engine reports, in order of precedence: FAULT (IMU data unusable),
-    ALIGNING (no attitude/heading yet), COASTING (GNSS velocity timed out), DEGRADED (IMU
-    alarm, a recent gap in the IMU stream, GNSS positions rejected as glitches, or a fix
-    quality outside ``navigating_fix_qualities``), else NAVIGATING."""
+    ALIGNING (no attitude/heading yet), COASTING (GNSS velocity timed out, the dead-reckoned
+    position still ``coast_within_accuracy``; DEGRADED beyond), DEGRADED (IMU alarm, a recent
+    gap in the IMU stream, GNSS positions rejected as glitches, or a fix quality outside
+    ``navigating_fix_qualities``), else NAVIGATING."""
     if fault:
         return Mode.FAULT
     if not aligned:
         return Mode.ALIGNING
     if coasting:
-        return Mode.COASTING
+        return Mode.COASTING if coast_within_accuracy else Mode.DEGRADED
     if imu_alarm or imu_gap or gnss_glitch:
         return Mode.DEGRADED
     if fix is None or int(fix.quality) not in navigating_fix_qualities:

@@ -22,7 +22,7 @@ Roll and pitch go out only with a stated accuracy: while their 1-sigma is unknow
 available". That is normal operation (an engine levelled on a moving window), not an
 implausible output: not counted, not logged, the mode kept.
 
-It also makes the fix fields say what the position sent is (SPEC 4): while COASTING the
+It also makes the fix fields say what the position sent is (SPEC 4): while coasting the
 position is dead reckoning (GGA quality 6; satellites, HDOP and age not available), and
 without a position, no fix (0), not the last fix received.
 
@@ -110,7 +110,7 @@ class OutputGuard:
 
     def check(self, sol: Solution) -> Solution:
         """``sol`` with what fails the checks set to None and the mode lowered accordingly."""
-        if sol.mode is Mode.COASTING and sol.fix_quality is not None:
+        if sol.coasting and sol.fix_quality is not None:
             dead_reckoning = sol.lat_deg is not None
             sol = replace(
                 sol,

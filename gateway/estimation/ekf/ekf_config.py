@@ -49,6 +49,10 @@ class EkfConfig:
     receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
     gnss_timeout_s: float = 1.5  # no accepted fix for this long (receive time): COASTING
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
+    # a dead-reckoned position's horizontal 1-sigma: COASTING up to coast_sigma_m (what DGNSS
+    # gives), DEGRADED beyond, not sent beyond max_coast_sigma_m (SPEC 4's integrity rule)
+    coast_sigma_m: float = 0.3
+    max_coast_sigma_m: float = 2.0
     history_s: float = 5.0  # INS history kept for late epochs (a loaded host delays them)
 
     # --- GNSS measurement noise ---

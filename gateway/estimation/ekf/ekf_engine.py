@@ -71,7 +71,12 @@ from gateway.estimation.ekf.error_state import (
     process_noise_psd,
     transition_matrix,
 )
-from gateway.estimation.engine_base import HeldEpochs, ImuHealth, common_fields
+from gateway.estimation.engine_base import (
+    HeldEpochs,
+    ImuHealth,
+    common_fields,
+    dead_reckoning_output,
+)
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
@@ -728,11 +733,12 @@ class EkfEngine:
         roll, pitch, yaw = rpy_from_mat9(c9)
         w_b = ins.w_b_lp_rps
         coasting_s = self._coasting_s()
-        mode = self._mode(coasting_s)
+        send, within = self._dead_reckoning_output(coasting_s)
+        mode = self._mode(coasting_s, within)
         nav = self.reference_state()
         lat = lon = alt = None
         vel = None
-        if nav is not None and self._frame is not None and coasting_s <= self.cfg.max_coast_s:
+        if nav is not None and self._frame is not None and send:
             lat, lon, alt = self._frame.to_lla(*(float(x) for x in nav[0]))
             vel = (float(nav[1][0]), float(nav[1][1]), float(nav[1][2]))
         sig = self.bias_sigma()
@@ -759,6 +765,7 @@ class EkfEngine:
             and fix.quality != FixQuality.NONE,
             reversing=self._reversing,
             stationary=self._stationary,
+            coasting=coasting_s > 0.0,
             convergence=Convergence(
                 gyro_xy=sig is not None
                 and max(sig[0][:2]) < cfg.gyro_xy_converged_dps * DEG_TO_RAD,
@@ -775,11 +782,22 @@ class EkfEngine:
         gap = self._t_s - self._t_accepted_rx_s
         return gap if gap > self.cfg.gnss_timeout_s else 0.0
 
-    def _mode(self, coasting_s: float) -> Mode:
+    def _dead_reckoning_output(self, coasting_s: float) -> tuple[bool, bool]:
+        """(position sent, within COASTING's accuracy): :func:`dead_reckoning_output` with the
+        horizontal position 1-sigma of the covariance (the INS position's: the fix-error states
+        describe fixes, and none come in an outage)."""
+        p = self._p
+        if coasting_s <= 0.0 or p is None:
+            return True, True
+        sigma_h = math.sqrt(p[POS.start, POS.start] + p[POS.start + 1, POS.start + 1])
+        return dead_reckoning_output(coasting_s, sigma_h, self.cfg)
+
+    def _mode(self, coasting_s: float, coast_within_accuracy: bool) -> Mode:
         return navigation_mode(
             fault=self._imu.fault,
             aligned=self._p is not None,
             coasting=coasting_s > 0.0,
+            coast_within_accuracy=coast_within_accuracy,
             imu_alarm=self._imu.alarm,
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,

@@ -235,6 +235,11 @@ class HeadingChannel:
         self._p_psi_rad2 *= 1.0 - k
         return k
 
+    @property
+    def sigma_psi_rad(self) -> float:
+        """Heading 1-sigma as of the last reference (pi until aligned), rad."""
+        return math.sqrt(self._p_psi_rad2)
+
     def _predict_heading_variance(self, gap_s: float) -> None:
         """Heading error variance grows by ARW^2 gap + (sigma_bz gap)^2 without a reference."""
         arw = self.cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR

@@ -35,6 +35,10 @@ class ObserverConfig:
     gnss_timeout_s: float = 1.5  # no usable velocity for this long (receive time): COASTING
     max_gnss_interval_s: float = 1.2  # epochs further apart are not differenced (1 Hz fits)
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
+    # a dead-reckoned position's horizontal 1-sigma: COASTING up to coast_sigma_m (what DGNSS
+    # gives), DEGRADED beyond, not sent beyond max_coast_sigma_m (SPEC 4's integrity rule)
+    coast_sigma_m: float = 0.3
+    max_coast_sigma_m: float = 2.0
     gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma (RTK carrier-phase Doppler)
 
     # --- IMU noise (ADIS16334 datasheet): roll/pitch sigma, heading gain, bias at rest ---

@@ -33,13 +33,19 @@ from gateway.estimation.attitude import (
     roll_pitch_from_specific_force,
     rpy_from_mat9,
 )
-from gateway.estimation.engine_base import HeldEpochs, ImuHealth, common_fields
+from gateway.estimation.engine_base import (
+    HeldEpochs,
+    ImuHealth,
+    common_fields,
+    dead_reckoning_output,
+)
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, fix_velocity_sigma_mps
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import reference_from_antenna, velocity_at
+from gateway.estimation.observer.coast_budget import CoastBudget
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.position_channel import PositionChannel
@@ -142,6 +148,7 @@ class ObserverEngine:
         self._at_rest = False  # reference point not moving (turning on the spot allowed)
         self._zero_rate_start: _Row | None = None  # history row where the rest window began
         self._coasting = False  # GNSS velocity timed out: platform open loop
+        self._coast_budget: CoastBudget | None = None  # error sources as the outage began
         # learning gates and convergence bookkeeping
         self._learn_ok_since_s: float | None = None
         self._g_learn = 0.0  # integral of dt / tau_g while learning
@@ -561,6 +568,20 @@ class ObserverEngine:
         obs.learn = False
         self._w_pz_rps = 0.0
         self._coasting = True
+        fix = self._last_fix
+        sigma_v = (
+            self.cfg.gnss_vel_sigma_mps
+            if fix is None
+            else fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps)
+        )
+        self._coast_budget = CoastBudget(
+            sigma_p0_m=math.hypot(*self._position.sigma_ne_m()),
+            sigma_v0_mps=math.hypot(sigma_v, self.cfg.dr_velocity_floor_mps),
+            sigma_a_mps2=GRAVITY_MPS2 * self._sigma_tilt_rad(0.0),
+            sigma_bg_rps=self._sigma_bg_rps(),
+            sigma_psi_rad=self._heading.sigma_psi_rad,
+            sigma_bz_rps=self._heading.kf.sigma_rps,
+        )
         for i in range(3):
             self._v_imu_ned_mps[i] = self._v_ned_mps[i] + self._lever_v_ned_mps[i]
         self._prev_epoch = None
@@ -801,13 +822,14 @@ class ObserverEngine:
         )
         lat = lon = alt = None
         vel = None
-        if self._nav_valid and self._frame is not None and coasting_s <= self.cfg.max_coast_s:
+        send, within = self._dead_reckoning_output(coasting_s)
+        if self._nav_valid and self._frame is not None and send:
             lat, lon, alt = self._frame.to_lla(*self._p_ned_m)
             vel = (self._v_ned_mps[0], self._v_ned_mps[1], self._v_ned_mps[2])
         k = self.cfg.converged_time_constants
         return Solution(
             **common,
-            mode=self._mode(coasting_s),
+            mode=self._mode(coasting_s, within),
             roll_rad=roll,
             pitch_rad=pitch,
             yaw_rad=yaw if self._heading_aligned else None,
@@ -822,6 +844,7 @@ class ObserverEngine:
             gnss_ok=gnss_ok,
             reversing=self._heading.reversing,
             stationary=self._stationary,
+            coasting=coasting_s > 0.0,
             convergence=Convergence(
                 gyro_xy=self._g_learn >= k,
                 gyro_z=self._heading.kf.sigma_rps < self.cfg.gyro_z_converged_dps * DEG_TO_RAD,
@@ -856,11 +879,22 @@ class ObserverEngine:
             return 0.0
         return max(0.0, self._t_s - self._t_vel_rx_s)
 
-    def _mode(self, coasting_s: float) -> Mode:
+    def _dead_reckoning_output(self, coasting_s: float) -> tuple[bool, bool]:
+        """(position sent, within COASTING's accuracy): :func:`dead_reckoning_output` with the
+        1-sigma of :class:`CoastBudget`."""
+        budget = self._coast_budget
+        if coasting_s <= 0.0 or budget is None:
+            return True, True
+        v = self._v_ned_mps
+        sigma_h = budget.sigma_h_m(coasting_s, math.hypot(v[0], v[1]))
+        return dead_reckoning_output(coasting_s, sigma_h, self.cfg)
+
+    def _mode(self, coasting_s: float, coast_within_accuracy: bool) -> Mode:
         return navigation_mode(
             fault=self._imu.fault,
             aligned=self._heading_aligned,
             coasting=coasting_s > 0.0,
+            coast_within_accuracy=coast_within_accuracy,
             imu_alarm=self._imu.alarm,
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
