@@ -15,7 +15,10 @@ limited rate (solution time, so replay logs the same). Checks:
   ``|v| dt + a_max dt^2 / 2 + jump_allowance_m`` of the last one sent, moved on by the last
   velocity sent. A position that is not is withheld; a new track is trusted again once it has
   been continuous with itself for ``settle_s`` (a real reset after an outage costs that long
-  without position, an absurd spike never gets through).
+  without position, an absurd spike never gets through). After ``stale_s`` without a position
+  sent (an outage whose dead reckoning was withheld) nothing is left to be continuous with:
+  the first ``settle_s`` of the new track are withheld the same way, but that is not an
+  implausible output, so it is neither counted nor logged as one, and the mode is kept.
 
 Roll and pitch go out only with a stated accuracy: while their 1-sigma is unknown or beyond
 ``max_tilt_sigma_deg`` (the most NAVGW_STATUS byte 7 can state, SPEC 4), they are "not
@@ -164,8 +167,8 @@ class OutputGuard:
                 f"{vel}; expected finite, below {lim.max_speed_mps:g} m/s",
                 vel_ned_mps=None, lat_deg=None, lon_deg=None, alt_m=None,
             )  # fmt: skip
-        if "lat_deg" not in changes:
-            self._check_position(sol, withhold)
+        if "lat_deg" not in changes and not self._check_position(sol, withhold):
+            sol = replace(sol, lat_deg=None, lon_deg=None, alt_m=None)
         if sol.sigma_tilt_rad is not None and not (
             math.isfinite(sol.sigma_tilt_rad) and sol.sigma_tilt_rad >= 0.0
         ):
@@ -185,12 +188,13 @@ class OutputGuard:
         self._log.warning(sol.t, f"implausible output withheld at t={sol.t:.3f}: {why}")
         return replace(sol, mode=mode, **changes)  # type: ignore[arg-type]
 
-    def _check_position(self, sol: Solution, withhold: Callable[..., None]) -> None:
-        """Range and continuity of the reference point; updates the tracks."""
+    def _check_position(self, sol: Solution, withhold: Callable[..., None]) -> bool:
+        """Range and continuity of the reference point; updates the tracks. False: a new
+        track after a stale one, still settling (withheld, but not implausible)."""
         lim = self.limits
         lat, lon, alt = sol.lat_deg, sol.lon_deg, sol.alt_m
         if lat is None or lon is None:
-            return
+            return True
         if not (
             math.isfinite(lat)
             and math.isfinite(lon)
@@ -203,26 +207,29 @@ class OutputGuard:
                 f"lat {lat}, lon {lon}, height {alt} m; expected on the Earth's surface",
                 lat_deg=None, lon_deg=None, alt_m=None, vel_ned_mps=None,
             )  # fmt: skip
-            return
+            return True
         vel = sol.vel_ned_mps
         here = _Track(sol.t, lat, lon, (vel[0], vel[1]) if vel else (0.0, 0.0), sol.t)
         track = self._track
         if track is None or self._continues(track, here):  # the first position: range only
             self._track, self._candidate = here, None
-            return
+            return True
         cand = self._candidate
         if cand is not None and self._continues(cand, here):
             here.since_t = cand.since_t
             if sol.t - cand.since_t >= lim.settle_s:
                 self._track, self._candidate = here, None  # a new track, trusted from now
-                return
+                return True
         self._candidate = here
+        if sol.t - track.t > lim.stale_s:
+            return False
         withhold(
             Withheld.POSITION,
             f"{_distance_m(track, here):.1f} m from the last position sent, moved on by its "
             f"velocity over {sol.t - track.t:.3f} s; expected a continuous track",
             lat_deg=None, lon_deg=None, alt_m=None,
         )  # fmt: skip
+        return True
 
     def _continues(self, a: _Track, b: _Track) -> bool:
         """``b`` lies where ``a``'s motion can take the vehicle by ``b.t``."""
