@@ -83,6 +83,11 @@ class Adis16334Config:
     imu_mounting_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     gyro_turn_on_bias_rps: tuple[float, float, float] | None = None  # IMU axes; None = random
     accel_turn_on_bias_mps2: tuple[float, float, float] | None = None
+    # the in-run (Gauss-Markov) bias at the first sample, IMU axes; None: drawn from its
+    # stationary spread. 0 with the turn-on bias set to where a previous run's bias ended
+    # continues that run's IMU (sim_bus.scenarios.continuation)
+    gyro_in_run_bias0_rps: tuple[float, float, float] | None = None
+    accel_in_run_bias0_mps2: tuple[float, float, float] | None = None
     gyro_turn_on_sigma_rps: float = 0.1 * DEG_TO_RAD
     accel_turn_on_sigma_mps2: float = 5.0 * MG
     gyro_bias_stability_rps: float = 0.007 * DEG_TO_RAD
@@ -136,11 +141,20 @@ class Adis16334Output:
         return len(self.t)
 
 
-def _gauss_markov(rng: np.random.Generator, n: int, dt: float, tau: float, sigma: float) -> Array:
-    """(n, 3) stationary first-order Gauss-Markov sequence of std ``sigma``."""
+def _gauss_markov(
+    rng: np.random.Generator,
+    n: int,
+    dt: float,
+    tau: float,
+    sigma: float,
+    x0: tuple[float, float, float] | None = None,
+) -> Array:
+    """(n, 3) first-order Gauss-Markov sequence of std ``sigma``: stationary, or from ``x0``."""
     a = np.exp(-dt / tau)
     w = rng.standard_normal((n, 3)) * sigma * np.sqrt(1.0 - a * a)
     w[0] = rng.standard_normal(3) * sigma
+    if x0 is not None:
+        w[0] = x0
     return np.asarray(lfilter([1.0], [1.0, -a], w, axis=0))
 
 
@@ -184,7 +198,12 @@ def simulate(
         return np.asarray(given, dtype=float) if given is not None else rng.normal(0, sigma, 3)
 
     b_g_imu = turn_on(config.gyro_turn_on_bias_rps, config.gyro_turn_on_sigma_rps) + _gauss_markov(
-        rng, n, dt, config.bias_correlation_time_s, config.gyro_bias_stability_rps / GM_ALLAN_FLOOR
+        rng,
+        n,
+        dt,
+        config.bias_correlation_time_s,
+        config.gyro_bias_stability_rps / GM_ALLAN_FLOOR,
+        config.gyro_in_run_bias0_rps,
     )
     b_a_imu = turn_on(config.accel_turn_on_bias_mps2, config.accel_turn_on_sigma_mps2)
     b_a_imu = b_a_imu + _gauss_markov(
@@ -193,6 +212,7 @@ def simulate(
         dt,
         config.bias_correlation_time_s,
         config.accel_bias_stability_mps2 / GM_ALLAN_FLOOR,
+        config.accel_in_run_bias0_mps2,
     )
     w_b = np.asarray(w_ib_b, dtype=float)
     f_b = np.asarray(f_ib_b_imu, dtype=float)

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import dataclasses
 import itertools
+import math
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -33,6 +34,7 @@ from gateway.config.gateway_config import (
     VehicleSection,
     config_toml,
 )
+from gateway.estimation.attitude import dcm_from_rpy_deg
 from gateway.estimation.epoch_clock import DELAY_WINDOW
 from sim_bus.adis16334 import Adis16334Config, Adis16334Output, simulate
 from sim_bus.gnss_receiver import (
@@ -135,6 +137,24 @@ _SLOPE_START = VehicleConfig(
     side_slope_wavelength_m=200.0,
     along_slope_deg=4.0,
 )
+#: A calibration drive (issue 17): 20 s at rest, seven 120 m passes on one line, each the
+#: other way, across a 4-6 deg side slope, joined by three-point turns, a stop half-way.
+_CALIBRATION = VehicleConfig(
+    swath_heading_deg=30.0,
+    swath_length_m=120.0,
+    swath_spacing_m=0.0,
+    n_passes=7,
+    work_speeds_mps=(3.0, 3.5),
+    turn_speed_mps=2.5,
+    start_stop_s=20.0,
+    mid_stop_pass=3,
+    mid_stop_s=15.0,
+    end_stop_s=10.0,
+    side_slope_min_deg=4.0,
+    side_slope_max_deg=6.0,
+    side_slope_wavelength_m=200.0,
+    along_slope_deg=1.5,
+)
 
 SCENARIOS: dict[str, Scenario] = {
     "field": Scenario(
@@ -180,6 +200,12 @@ SCENARIOS: dict[str, Scenario] = {
         "~3.5 min: cold start parked on a 9 deg side slope (4 deg along), 5 s rest, four passes",
         _SLOPE_START,
     ),
+    "calibration": Scenario(
+        "calibration",
+        "~8.5 min: the same 120 m line driven both ways seven times on a 4-6 deg side slope, "
+        "three-point turns, stops (navgw calibrate)",
+        _CALIBRATION,
+    ),
     "short": Scenario(
         "short",
         "~2 min: 30 s rest, three 50 m passes, a right and a left U-turn (tests, demo)",
@@ -213,6 +239,52 @@ def scenario_from_toml(table: dict[str, Any], where: str = "scenario") -> Scenar
             "[vehicle], [imu], [bridge], [gnss]"
         )
     return dataclasses.replace(base, **parts)
+
+
+def continuation(
+    previous: Scenario, truth: Truth, scenario: Scenario, pause_s: float = 60.0
+) -> Scenario:
+    """``scenario``'s drive with the IMU of ``previous`` (whose run's truth is ``truth``),
+    started ``pause_s`` after it ended: a restart of the same gateway, e.g. after a break.
+
+    The IMU is the same (model settings, mounting, bridge): its turn-on bias is where the
+    previous run's bias ended, its in-run wander starts from 0 there, and its temperature
+    starts where it ended (a short pause: no time to cool). The clock goes on, and the
+    vehicle starts where it stopped, its first pass along its last heading. Runs that are
+    not continuations are unchanged.
+    """
+    imu = previous.imu
+    c_b_imu = dcm_from_rpy_deg(imu.imu_mounting_rpy_deg)
+    bias_g = truth.bias_g_rps[-1] @ c_b_imu  # body -> IMU axes: C^T b
+    bias_a = truth.bias_a_mps2[-1] @ c_b_imu
+    t_run = float(truth.t[-1] - truth.t[0])
+    temp_end_c = imu.temp_end_c + (imu.temp_start_c - imu.temp_end_c) * math.exp(
+        -t_run / imu.temp_tau_s
+    )
+    lat, lon, alt = (float(x) for x in truth.lla[-1])
+    return dataclasses.replace(
+        scenario,
+        name=f"{scenario.name} after {previous.name}",
+        vehicle=dataclasses.replace(
+            scenario.vehicle,
+            origin_lla=(lat, lon, alt),
+            swath_heading_deg=math.degrees(float(truth.rpy_rad[-1, 2])),
+        ),
+        imu=dataclasses.replace(
+            imu,
+            gyro_turn_on_bias_rps=_vec3(bias_g),
+            accel_turn_on_bias_mps2=_vec3(bias_a),
+            gyro_in_run_bias0_rps=(0.0, 0.0, 0.0),
+            accel_in_run_bias0_mps2=(0.0, 0.0, 0.0),
+            temp_start_c=temp_end_c,
+        ),
+        bridge=previous.bridge,
+        t0_s=float(truth.t[-1]) + pause_s,
+    )
+
+
+def _vec3(a: np.ndarray) -> tuple[float, float, float]:
+    return (float(a[0]), float(a[1]), float(a[2]))
 
 
 def _seeded(scenario: Scenario, seed: int) -> tuple[int, Scenario]:

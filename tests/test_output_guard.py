@@ -18,7 +18,7 @@ import pytest
 from drivers.logs.candump import CandumpWriter, read_candump
 from drivers.samples import FixQuality, GnssFix, ImuSample
 from gateway.config.gateway_config import GatewayConfig
-from gateway.estimation.solution import Mode, Solution
+from gateway.estimation.solution import LearnedState, Mode, Solution
 from gateway.fusion.fusion_core import FusionCore
 from gateway.fusion.output_guard import GuardLimits, OutputGuard, Withheld
 from tests.n2k_check import decode_log
@@ -49,6 +49,12 @@ class ScriptedEngine:
 
     def gnss(self, fix: GnssFix) -> None:
         pass
+
+    def seed(self, learned: LearnedState) -> bool:
+        return False  # learns nothing, takes nothing
+
+    def learned_state(self) -> LearnedState | None:
+        return None
 
     def solution(self) -> Solution:
         s = self.t - T0

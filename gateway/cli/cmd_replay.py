@@ -31,6 +31,13 @@ def add_subparser(
     p.add_argument("--out", required=True, type=Path, help="output frames, candump -L")
     p.add_argument("--config", type=Path, help="gateway config (TOML)")
     p.add_argument("--engine", choices=[e.value for e in Engine], help="override [estimator]")
+    p.add_argument(
+        "--state-dir",
+        type=Path,
+        metavar="DIR",
+        help="start from the learned state in DIR (a warm start, as the service's) and save "
+        "what was learned there at the end; default: a cold start, no state kept",
+    )
     p.set_defaults(func=run)
 
 
@@ -82,7 +89,7 @@ def run(args: argparse.Namespace) -> int:
                 "sim writes its vehicle's: navgw.toml beside the logs)",
                 file=sys.stderr,
             )
-        result = replay(args.can, args.nmea, args.out, config, _progress)
+        result = replay(args.can, args.nmea, args.out, config, _progress, args.state_dir)
     except (ConfigError, DriverError) as err:
         print(f"navgw replay: {err}", file=sys.stderr)
         return 2
@@ -90,6 +97,10 @@ def run(args: argparse.Namespace) -> int:
         print(f"navgw replay: {err.filename}: {err.strerror}", file=sys.stderr)
         return 2
     print(summary_text(result), file=sys.stderr)
+    if args.state_dir is not None:
+        start = "warm start" if result.warm_start else "cold start"
+        saved = "learned state saved" if result.state_saved else "nothing new saved"
+        print(f"  state: {start}, {saved} ({args.state_dir})", file=sys.stderr)
     unread = unreadable(result, args.can, args.nmea)
     if unread:
         print(f"navgw replay: {unread}", file=sys.stderr)

@@ -33,6 +33,10 @@ COMMANDS = {
         "run recorded logs through the gateway, write its output frames",
     ),
     "config": ("gateway.cli.cmd_config", "print an example config, or check a config file"),
+    "state": (
+        "gateway.cli.cmd_state",
+        "show or clear the learned IMU biases kept for a warm start",
+    ),
     "sim": ("gateway.cli.cmd_sim", "simulate a field run: IMU CAN log, NMEA log and truth"),
     "monitor": (
         "gateway.cli.cmd_monitor",

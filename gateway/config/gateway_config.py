@@ -240,6 +240,50 @@ class RecordingSection:
     )
 
 
+@dataclass(frozen=True)
+class StateSection:
+    """[state]: what the gateway learned of its IMU, kept across starts (warm start)."""
+
+    enabled: bool = field(
+        default=True,
+        metadata=_doc("load the learned biases at start, save them while running and at stop"),
+    )
+    directory: str = field(
+        default="/var/lib/navgw",
+        metadata=_doc("where (systemd StateDirectory=navgw); learned_state.json in it"),
+    )
+    save_interval_s: float = field(
+        default=300.0,
+        metadata=_doc("save this often while running (and at a clean stop)", **in_range(10.0, 1e5)),
+    )
+    temperature_band_c: float = field(
+        default=10.0,
+        metadata=_doc(
+            "kept per IMU temperature band this wide, degC; none used beyond one band away",
+            **in_range(1.0, 100.0),
+        ),
+    )
+    max_age_days: float = field(
+        default=30.0,
+        metadata=_doc("learned biases older than this are not used", **in_range(0.001, 3650.0)),
+    )
+    # bias change with temperature: grows a stored sigma by tempco x |temperature change|
+    gyro_bias_tempco_dps_per_c: float = field(
+        default=0.01,
+        metadata=_doc(
+            "gyro bias temperature coefficient, deg/s per degC (ADIS1633x-class datasheet)",
+            **in_range(0.0, 1.0),
+        ),
+    )
+    accel_bias_tempco_mg_per_c: float = field(
+        default=0.1,
+        metadata=_doc(
+            "accelerometer bias temperature coefficient, mg per degC (ADIS1633x-class datasheet)",
+            **in_range(0.0, 100.0),
+        ),
+    )
+
+
 #: Sections with a plain dataclass, in the order the example prints them.
 SECTIONS: dict[str, type] = {
     "vehicle": VehicleSection,
@@ -249,6 +293,7 @@ SECTIONS: dict[str, type] = {
     "isobus": IsobusSection,
     "output": OutputSection,
     "recording": RecordingSection,
+    "state": StateSection,
 }
 
 #: Engine tuning sections; their shared fields come from [vehicle] and [gnss].
@@ -280,6 +325,7 @@ class GatewayConfig:
     isobus: IsobusSection = IsobusSection()
     output: OutputSection = OutputSection()
     recording: RecordingSection = RecordingSection()
+    state: StateSection = StateSection()
     observer: ObserverConfig = field(default_factory=ObserverConfig)
     ekf: EkfConfig = field(default_factory=EkfConfig)
 

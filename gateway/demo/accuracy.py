@@ -26,6 +26,7 @@ from drivers.units import wrap_pi
 from gateway.estimation.attitude import dcm_from_rpy_array
 from gateway.estimation.geodesy import lla_to_ned
 from gateway.estimation.solution import Estimator, Solution
+from gateway.fusion.fusion_core import BusFrame, FusionCore
 from sim_bus.truth import Truth
 
 Array = npt.NDArray[np.float64]
@@ -39,6 +40,13 @@ RECOVERY_S = 30.0
 COLD_START_JUDGED_FROM_S = 60.0
 #: ... for this long.
 COLD_START_WINDOW_S = 60.0
+#: Warm start (issue 17): roll and pitch count as within a limit when their RMS over this
+#: long is (one sample's error is mostly the tilt loop's ARW noise, 0.05 deg 1-sigma) ...
+START_RMS_WINDOW_S = 10.0
+#: ... for every window starting within this long (20 s in all); a bias must stay within
+#: its limit this long.
+START_HOLD_S = 10.0
+BIAS_HOLD_S = 10.0
 #: GGA qualities (drivers.samples.FixQuality values) of the spans reported apart.
 RTK_FIXED, RTK_FLOAT, OUTAGE = 4, 5, 0
 
@@ -101,6 +109,23 @@ def record(
                 solutions.append(engine.solution())
         elif isinstance(item, GnssFix):
             engine.gnss(item)
+    return Trace.from_solutions(solutions)
+
+
+def record_core(
+    core: FusionCore, inputs: Iterable[ImuSample | ImuAux | GnssFix | BusFrame], every: int = 10
+) -> Trace:
+    """:func:`record` through a fusion core (IMU_AUX included: a warm start is the core's),
+    before its address claim (so it encodes nothing)."""
+    solutions: list[Solution] = []
+    n = 0
+    for item in inputs:
+        for _ in core.on_input(item):
+            pass
+        if isinstance(item, ImuSample):
+            n += 1
+            if n % every == 0:
+                solutions.append(core.solution())
     return Trace.from_solutions(solutions)
 
 
@@ -195,6 +220,67 @@ def first_time(t: npt.ArrayLike, flag: npt.ArrayLike) -> float | None:
         return None
     false_idx = np.flatnonzero(~f)
     return float(t_a[false_idx[-1] + 1] if false_idx.size else t_a[0])
+
+
+def window_rms(t: npt.ArrayLike, x: npt.ArrayLike, window_s: float) -> Array:
+    """RMS of ``x`` over [t_i, t_i + window_s] for each i (n,); NaN where the window runs
+    past the end or holds a NaN (an unknown value is not within any limit)."""
+    t_a, x_a = np.asarray(t, dtype=float), np.asarray(x, dtype=float)
+    if t_a.size == 0:
+        return np.zeros(0)
+    bad = ~np.isfinite(x_a)
+    sq = np.concatenate(([0.0], np.cumsum(np.where(bad, 0.0, x_a * x_a))))
+    nbad = np.concatenate(([0], np.cumsum(bad)))
+    end = np.searchsorted(t_a, t_a + window_s, side="right")
+    start = np.arange(len(t_a))
+    n = end - start
+    out = np.sqrt((sq[end] - sq[start]) / np.maximum(n, 1))
+    out[(nbad[end] - nbad[start] > 0) | (t_a + window_s > t_a[-1])] = np.nan
+    return np.asarray(out)
+
+
+def settle_time(t: npt.ArrayLike, ok: npt.ArrayLike, hold_s: float) -> float | None:
+    """Time from ``t[0]`` to the first instant from which ``ok`` holds for ``hold_s`` (the
+    whole hold inside the record); None if never."""
+    t_a, ok_a = np.asarray(t, dtype=float), np.asarray(ok, dtype=bool)
+    if t_a.size == 0:
+        return None
+    bad = np.concatenate(([0], np.cumsum(~ok_a)))
+    end = np.searchsorted(t_a, t_a + hold_s, side="right")
+    good = (bad[end] == bad[np.arange(len(t_a))]) & (t_a + hold_s <= t_a[-1])
+    first = np.flatnonzero(good)
+    return float(t_a[first[0]] - t_a[0]) if first.size else None
+
+
+@dataclass
+class StartAccuracy:
+    """How soon after a start the solution is accurate (s from the first recorded instant;
+    None: not within the record): roll and pitch RMS over :data:`START_RMS_WINDOW_S` within
+    ``tilt_limit`` for :data:`START_HOLD_S`; the x/y accelerometer bias errors within
+    ``accel_limit`` for :data:`BIAS_HOLD_S`."""
+
+    attitude_s: float | None
+    accel_bias_s: float | None
+
+
+def start_accuracy(
+    trace: Trace,
+    truth: Truth,
+    tilt_limit_rad: float = math.radians(0.1),
+    accel_limit_mps2: float = 0.01,
+) -> StartAccuracy:
+    """:class:`StartAccuracy` of ``trace`` against ``truth`` (issue 17's warm start)."""
+    tr = truth_at(truth, trace.t)
+    att = attitude_error_rad(trace.rpy_rad, tr.rpy_rad)
+    tilt_ok = (window_rms(trace.t, att[:, 0], START_RMS_WINDOW_S) <= tilt_limit_rad) & (
+        window_rms(trace.t, att[:, 1], START_RMS_WINDOW_S) <= tilt_limit_rad
+    )
+    d_ba = np.abs(trace.bias_a_mps2[:, :2] - tr.bias_a_mps2[:, :2])
+    accel_ok = np.all(d_ba <= accel_limit_mps2, axis=1)  # NaN compares False
+    return StartAccuracy(
+        attitude_s=settle_time(trace.t, tilt_ok, START_HOLD_S),
+        accel_bias_s=settle_time(trace.t, accel_ok, BIAS_HOLD_S),
+    )
 
 
 # ============================================================================ the report

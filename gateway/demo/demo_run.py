@@ -33,6 +33,7 @@ from gateway.config.gateway_config import (
     GnssSection,
     ImuSection,
     IsobusSection,
+    StateSection,
     VehicleSection,
 )
 from gateway.demo.playback import SyncedPlayback
@@ -189,6 +190,7 @@ def demo_config(truth: Truth, port: str, tag: str) -> GatewayConfig:
         imu=ImuSection(interface="virtual", channel=f"navgw-demo-imu-{tag}"),
         isobus=IsobusSection(interface="virtual", channel=f"navgw-demo-isobus-{tag}"),
         gnss=GnssSection(port=port, receiver_latency_s=RECEIVER_LATENCY_S),
+        state=StateSection(enabled=False),  # a simulated IMU's biases are no vehicle's
     )
 
 

@@ -13,6 +13,7 @@ from collections.abc import Iterator
 from typing import Any, Protocol
 
 from drivers.samples import GnssFix, ImuSample
+from drivers.units import GRAVITY_MPS2
 from gateway.estimation.solution import ImuTiming
 
 #: Epochs ahead of the IMU kept at most (a receiver far ahead of the IMU is a time fault).
@@ -44,6 +45,30 @@ def dead_reckoning_output(
         coasting_s <= limits.max_coast_s and sigma_h_m <= limits.max_coast_sigma_m,
         sigma_h_m <= limits.coast_sigma_m,
     )
+
+
+def levelling_correction(
+    c_bn9: tuple[float, ...], dba_mps2: tuple[float, float, float]
+) -> tuple[float, float, float]:
+    """The small rotation phi (NED, rad) that turns an attitude levelled on the mean specific
+    force with the accelerometer bias taken as b into the one levelled with b + ``dba``:
+    C <- exp([phi]x) C.
+
+    Levelling reads a bias error for tilt: C dba = g (-phi_E, phi_N, .), so phi_N =
+    (C dba)_E / g, phi_E = -(C dba)_N / g (the EKF's tilt-bias correlation at alignment, the
+    same relation). ``c_bn9``: C_b^n as 9 row-major floats.
+    """
+    c = c_bn9
+    dn = c[0] * dba_mps2[0] + c[1] * dba_mps2[1] + c[2] * dba_mps2[2]
+    de = c[3] * dba_mps2[0] + c[4] * dba_mps2[1] + c[5] * dba_mps2[2]
+    return (de / GRAVITY_MPS2, -dn / GRAVITY_MPS2, 0.0)
+
+
+def seeded_exponent(sigma0: float, sigma: float) -> float:
+    """The learning exponent at which a sigma model sigma0 exp(-x) says ``sigma``: what a
+    seeded observer has learned, in its own terms (never negative: a seed worse than the
+    turn-on guess teaches nothing)."""
+    return max(0.0, math.log(sigma0 / sigma))
 
 
 class ImuHealth:

@@ -150,6 +150,32 @@ def navigation_mode(
     return Mode.NAVIGATING
 
 
+Float3 = tuple[float, float, float]
+
+
+@dataclass(frozen=True, slots=True)
+class LearnedState:
+    """What an engine has learned of its IMU, to start another engine from (a warm start, or
+    a restart after an IMU gap): the bias estimates, body FRD, and their 1-sigma per axis.
+
+    Each sigma is the honest 1-sigma of the estimate as it stands (an engine seeded with it
+    reports it back until it has learned better), never a hope. The engines take it as it
+    is: growing a stored state by its age and the temperature change is the caller's job
+    (:mod:`gateway.state`).
+    """
+
+    bias_g_rps: Float3  # gyro bias, rad/s
+    sigma_g_rps: Float3
+    bias_a_mps2: Float3  # accelerometer bias, m/s^2
+    sigma_a_mps2: Float3
+
+    def is_valid(self) -> bool:
+        """Every number finite and every sigma positive (what an engine may be seeded with)."""
+        values = (*self.bias_g_rps, *self.sigma_g_rps, *self.bias_a_mps2, *self.sigma_a_mps2)
+        sigmas = (*self.sigma_g_rps, *self.sigma_a_mps2)
+        return all(math.isfinite(v) for v in values) and all(s > 0.0 for s in sigmas)
+
+
 class Estimator(Protocol):
     """What the fusion loop needs from an engine: feed samples, read the solution."""
 
@@ -161,3 +187,17 @@ class Estimator(Protocol):
 
     def solution(self) -> Solution:
         """The current solution, at the time of the last IMU sample."""
+
+
+class LearningEstimator(Estimator, Protocol):
+    """An estimator that learns its IMU's biases and can start from what it learned before
+    (both engines; the comparison baselines of the demo need not)."""
+
+    def seed(self, learned: LearnedState) -> bool:
+        """Start from ``learned`` (biases and their 1-sigma) instead of the turn-on guess;
+        False (nothing changed) if the engine has already begun to learn on its own, or
+        ``learned`` is not valid. Without a seed the engine behaves exactly as before."""
+
+    def learned_state(self) -> LearnedState | None:
+        """The biases learned so far with their honest 1-sigma; None before the engine has
+        any (not yet levelled and not seeded)."""

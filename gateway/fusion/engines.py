@@ -7,10 +7,10 @@ from gateway.estimation.ekf.ekf_config import EkfConfig
 from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.epoch_clock import EpochClock
 from gateway.estimation.observer.observer_engine import ObserverEngine
-from gateway.estimation.solution import Estimator
+from gateway.estimation.solution import LearningEstimator
 
 
-def make_engine(config: GatewayConfig, clock: EpochClock | None = None) -> Estimator:
+def make_engine(config: GatewayConfig, clock: EpochClock | None = None) -> LearningEstimator:
     """The estimator ``config`` selects, tuned by it; ``clock`` shared if given (the fusion
     core keeps one across engine restarts: a restart on a loaded host must not forget that
     the host clock follows UTC and take late epochs for a clock offset)."""

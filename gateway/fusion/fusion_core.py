@@ -22,6 +22,14 @@ a guess. A saturated sample (an axis at the end of its register) is no measureme
 fed to the engine, NAVGW_STATUS says FAULT from that sample on, and when the IMU is back in
 range the engine restarts (the rotation while saturated is unknown: 2 s of full-scale gyro
 left the attitude 179 deg off, then above 1 deg for 35 s, while STATUS said navigating).
+A restarted engine starts from what the one it replaces had learned of the IMU's biases
+(:meth:`LearningEstimator.learned_state`, with its sigmas): the IMU is the same.
+
+Warm start: the shell may give a ``warm_start`` callback (:mod:`gateway.state`), which the
+core asks once, with the IMU's temperature and the time of the first IMU_AUX (1 Hz), for
+the learned state to seed the engine with; without IMU_AUX within :data:`WARM_START_WAIT_S`
+of the first sample the engine stays cold (the state is kept per temperature, and a guess
+of the temperature would be a guess of the biases).
 """
 
 from __future__ import annotations
@@ -40,7 +48,7 @@ import can
 
 from drivers.samples import GnssFix, ImuAux, ImuCounters, ImuSample
 from gateway.config.gateway_config import GatewayConfig
-from gateway.estimation.solution import Estimator, Mode, Solution
+from gateway.estimation.solution import LearnedState, LearningEstimator, Mode, Solution
 from gateway.fusion.engines import epoch_clock, make_engine
 from gateway.fusion.output_guard import OutputGuard
 from gateway.isobus.address_claim import AddressClaimer, Name
@@ -59,6 +67,12 @@ IMU_SILENT_S = 0.2
 #: A gap this long in the IMU stream, or time going back this much, restarts the engine
 #: (30 s of silence carried across put the EKF's first position 84 m off while navigating).
 RESTART_GAP_S = 1.0
+#: A warm start waits this long after the first IMU sample for the IMU's temperature (the
+#: first IMU_AUX; the bridge sends it at 1 Hz), then the engine stays cold.
+WARM_START_WAIT_S = 3.0
+
+#: (IMU temperature degC, time s) -> the learned state to seed the engine with, or None.
+WarmStart = Callable[[float, float], LearnedState | None]
 
 
 #: What an input that sends nothing returns (no generator per IMU sample); callers may skip
@@ -93,12 +107,13 @@ class FusionCore:
 
     def __init__(
         self,
-        engine: Estimator,
+        engine: LearningEstimator,
         scheduler: OutputScheduler,
         claimer: AddressClaimer,
         network: NetworkManager,
         imu_counters: ImuCounters | None = None,
-        make_engine: Callable[[], Estimator] | None = None,
+        make_engine: Callable[[], LearningEstimator] | None = None,
+        warm_start: WarmStart | None = None,
     ) -> None:
         self.engine = engine
         self._make_engine = make_engine  # for a restart; None: the engine carries on
@@ -113,12 +128,20 @@ class FusionCore:
         self._saturated = False  # saturated samples since the last good one
         self._told_mode: Mode | None = None  # mode of the last NAVGW_STATUS sent
         self._last_saturation_log = -math.inf
+        self._warm_start = warm_start  # asked once, at the first IMU_AUX
+        self._t_first_imu: float | None = None
+        self.imu_temp_c: float | None = None  # the last IMU_AUX's temperature
+        self.warm_started = False  # the engine started from a learned state
 
     @classmethod
     def from_config(
-        cls, config: GatewayConfig, imu_counters: ImuCounters | None = None
+        cls,
+        config: GatewayConfig,
+        imu_counters: ImuCounters | None = None,
+        warm_start: WarmStart | None = None,
     ) -> FusionCore:
-        """Engine, scheduler, claimer and network as the config says."""
+        """Engine, scheduler, claimer and network as the config says; ``warm_start``: where
+        the learned state comes from (None: every start is cold)."""
         clock = epoch_clock(config)  # one for every engine of this core (restarts included)
         isobus = config.isobus
         name = Name(
@@ -154,6 +177,7 @@ class FusionCore:
             claimer=claimer,
             network=NetworkManager(claimer, product, periodic=scheduler.rates_hz),
             imu_counters=imu_counters,
+            warm_start=warm_start,
         )
 
     def start(self, now: float) -> Iterator[can.Message]:
@@ -171,7 +195,26 @@ class FusionCore:
             self.engine.gnss(item)
         else:
             self.stats.imu_aux += 1  # temperature, supply, DIAG_STAT: counted by the decoder
+            self.imu_temp_c = item.temp_c
+            if self._warm_start is not None:
+                self._seed_engine(item.temp_c, item.t)
         return self._counted(self._silent_status(item.t))
+
+    def _seed_engine(self, temp_c: float, t: float) -> None:
+        """Seed the engine with the learned state for ``temp_c`` (the warm start, once)."""
+        warm_start, self._warm_start = self._warm_start, None
+        assert warm_start is not None
+        learned = warm_start(temp_c, t)
+        if learned is None:
+            return
+        if self.engine.seed(learned):
+            self.warm_started = True
+            log.info("warm start at t=%.3f, IMU at %.1f degC: %s", t, temp_c, learned_text(learned))
+        else:
+            log.warning(
+                "warm start at t=%.3f not applied: the engine had begun to learn on its own "
+                "(or the learned state is not valid); cold start", t,
+            )  # fmt: skip
 
     def on_imu(self, sample: ImuSample) -> Iterator[can.Message]:
         """Propagate with one sample, then send whatever is due at its time."""
@@ -186,10 +229,15 @@ class FusionCore:
                 self._last_saturation_log = sample.t
             self._saturated = True
             return self._counted(chain(self._timers(sample.t), self._fault(sample.t)))
+        if self._warm_start is not None:
+            self._wait_for_temperature(sample.t)
         last = self._last_sample
         gap = last is not None and abs(sample.t - last.t) >= RESTART_GAP_S
         if (gap or self._saturated) and self._make_engine is not None:
+            learned = self.engine.learned_state()
             self.engine = self._make_engine()
+            if learned is not None:
+                self.engine.seed(learned)
             self.guard.forget_track()
             self.stats.engine_restarts += 1
             if gap and last is not None:
@@ -206,6 +254,17 @@ class FusionCore:
         sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
         frames = self.scheduler.frames(sent, self.loop_status(sample.t), now=self._told(sent.mode))
         return self._counted(chain(polled, frames))
+
+    def _wait_for_temperature(self, t: float) -> None:
+        """No IMU_AUX within WARM_START_WAIT_S of the first IMU sample: stay cold."""
+        if self._t_first_imu is None:
+            self._t_first_imu = t
+        elif t - self._t_first_imu > WARM_START_WAIT_S:
+            self._warm_start = None
+            log.warning(
+                "no IMU temperature (IMU_AUX) within %g s of the first IMU sample: cold start "
+                "(learned biases are kept per temperature)", WARM_START_WAIT_S,
+            )  # fmt: skip
 
     def on_bus_frame(self, msg: can.Message, now: float) -> Iterator[can.Message]:
         """A frame received from the ISOBUS (address claims, requests, transport frames,
@@ -294,3 +353,16 @@ class FusionCore:
             address_claimed=self.claimer.claimed,
             imu_samples_lost=lost - self._lost_marks[0][1],
         )
+
+
+def learned_text(learned: LearnedState) -> str:
+    """Biases with their 1-sigma, one line: gyro deg/s, accelerometer m/s^2."""
+    g = ", ".join(
+        f"{math.degrees(b):+.4f}+/-{math.degrees(sd):.4f}"
+        for b, sd in zip(learned.bias_g_rps, learned.sigma_g_rps, strict=True)
+    )
+    a = ", ".join(
+        f"{b:+.4f}+/-{sd:.4f}"
+        for b, sd in zip(learned.bias_a_mps2, learned.sigma_a_mps2, strict=True)
+    )
+    return f"gyro bias {g} deg/s, accelerometer bias {a} m/s^2"

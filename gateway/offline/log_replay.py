@@ -2,6 +2,12 @@
 
 The clock is the logs' host clock: each output frame is stamped with the time of the input
 that triggered it, so the same input always gives byte-identical output.
+
+With a ``state_dir`` the replay is a start of the gateway that has been running before: the
+learned state there seeds the engine (as the live service's does, by the IMU temperature of
+the first IMU_AUX and the log's clock) and what the engine learned is saved there at the
+end, so a recording continuing another replays as the service would have run it. Without
+one, every replay starts cold and touches no file but its output.
 """
 
 from __future__ import annotations
@@ -18,6 +24,7 @@ from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import GatewayConfig
 from gateway.fusion.fusion_core import NOTHING, FusionCore, FusionStats
 from gateway.offline.log_inputs import Input, LogInputs
+from gateway.state.keeper import StateKeeper
 
 #: Wraps the input iterator, e.g. in a progress bar; gets the CAN log's size in bytes.
 Progress = Callable[[Iterable[Input], LogInputs], Iterator[Input]]
@@ -34,6 +41,8 @@ class ReplaySummary:
     bad_nmea_lines: int
     log_span_s: float
     wall_s: float
+    warm_start: bool = False  # the engine started from the learned state of ``state_dir``
+    state_saved: bool = False  # what it learned was saved there
 
     @property
     def speedup(self) -> float:
@@ -47,11 +56,20 @@ def replay(
     out_log: str | Path,
     config: GatewayConfig | None = None,
     progress: Progress | None = None,
+    state_dir: str | Path | None = None,
 ) -> ReplaySummary:
-    """Run the logs through the fusion core and write every output frame (candump -L)."""
+    """Run the logs through the fusion core and write every output frame (candump -L);
+    ``state_dir``: start from the learned state there and save to it at the end (made if
+    missing)."""
     config = config or GatewayConfig()
     inputs = LogInputs(can_log, nmea_log, imu_config(config))
-    core = FusionCore.from_config(config, inputs.imu_decoder.counters)
+    keeper = None
+    if state_dir is not None:
+        Path(state_dir).mkdir(parents=True, exist_ok=True)
+        keeper = StateKeeper(config, state_dir)
+        keeper.load()
+    warm_start = keeper.warm_start if keeper is not None and keeper.stored else None
+    core = FusionCore.from_config(config, inputs.imu_decoder.counters, warm_start=warm_start)
     # the recorded gateway's own frames are no one else's (its claims, and from its address)
     inputs.own_name, inputs.own_address = core.claimer.name, config.isobus.preferred_address
     stream: Iterable[Input] = progress(inputs, inputs) if progress else inputs
@@ -68,6 +86,7 @@ def replay(
             if frames is not NOTHING:  # most IMU samples send nothing
                 write_all(frames)
     wall = time.perf_counter() - wall
+    saved = keeper is not None and keeper.save(core, force=True)
     return ReplaySummary(
         stats=core.stats,
         imu=inputs.imu_decoder.counters,
@@ -76,6 +95,8 @@ def replay(
         bad_nmea_lines=inputs.bad_nmea_lines,
         log_span_s=(t_last - t_first) if t_first is not None and t_last is not None else 0.0,
         wall_s=wall,
+        warm_start=core.warm_started,
+        state_saved=saved,
     )
 
 

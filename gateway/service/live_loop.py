@@ -1,6 +1,7 @@
 """The live service (``navgw run``, ``navgw demo``): an asyncio shell around the FusionCore.
 
-Tasks of one event loop (no threads of ours; the estimator is fast and runs inline):
+Tasks of one event loop (no threads of ours but the learned state's writer; the estimator
+is fast and runs inline):
 
 - one CAN task per distinct bus (:class:`~gateway.service.bus_links.BusPlan`): opens the bus,
   retrying
@@ -20,7 +21,13 @@ Tasks of one event loop (no threads of ours; the estimator is fast and runs inli
   counted and logged at a limited rate, and an interface that is down makes the CAN task
   reopen the bus;
 - the tick task: advances the claim timers while no IMU frame arrives; the loop's heartbeat;
-- the health task: sd_notify STATUS every few seconds and WATCHDOG=1 while :meth:`healthy`.
+- the health task: sd_notify STATUS every few seconds and WATCHDOG=1 while :meth:`healthy`;
+- the state task (``[state] enabled``): every ``save_interval_s`` the learned biases, if the
+  engine has learned better ones, written to the state directory
+  (:class:`~gateway.state.keeper.StateKeeper`); the write (an fsync, tens of ms on an ECU's
+  flash) runs in a worker thread so that it never holds up the core. The learned state is
+  read before the tasks start (the engine starts from it at the first IMU_AUX) and written
+  once more at a clean stop (SIGTERM).
 
 Time: every time the core sees (IMU frame arrival, GNSS receive time, claim timers) goes
 through one :class:`~gateway.service.timebase.TimeBase`: the identity live, a scaled clock in the
@@ -65,6 +72,7 @@ from gateway.service.bus_links import BusPlan, BusSpec, EchoFilter, claim_filter
 from gateway.service.input_recording import InputRecorder
 from gateway.service.sdnotify import SdNotifier
 from gateway.service.timebase import LIVE, TimeBase
+from gateway.state.keeper import StateKeeper
 
 log = logging.getLogger(__name__)
 
@@ -176,7 +184,14 @@ class GatewayService:
         self.notifier = notifier if notifier is not None else SdNotifier({})
         plan = BusPlan.from_config(config)
         self.imu_decoder = ImuDecoder(imu_config(config))
-        self.core = FusionCore.from_config(config, self.imu_decoder.counters)
+        self.state = StateKeeper(config) if config.state.enabled else None
+        if self.state is not None:
+            self.state.load()
+        self.core = FusionCore.from_config(
+            config,
+            self.imu_decoder.counters,
+            warm_start=self.state.warm_start if self.state and self.state.stored else None,
+        )
         self.recorder = (
             InputRecorder(config.recording, plan.imu.channel, timebase.now)
             if config.recording.enabled
@@ -226,6 +241,8 @@ class GatewayService:
         jobs = {f"can {link.spec}": self._run_bus(link) for link in self.links}
         jobs |= {"gnss": self._run_gnss(), "core": self._run_core(), "tick": self._run_tick()}
         jobs["health"] = self._run_health()
+        if self.state is not None and self.state.usable_directory:
+            jobs["state"] = self._run_state(self.state)
         self._tasks = [asyncio.create_task(job, name=name) for name, job in jobs.items()]
         stop = asyncio.create_task(self._stop.wait(), name="stop")
         log.info("navgw running: %s", self.status_line())
@@ -250,6 +267,8 @@ class GatewayService:
         await asyncio.gather(*tasks, return_exceptions=True)
         if self.recorder is not None:
             self.recorder.close()
+        if self.state is not None and self.state.save(self.core, force=True):
+            log.info("learned state saved to %s", self.state.path)
         log.info("navgw stopped: %s", self.status_line())
 
     def healthy(self) -> bool:
@@ -349,6 +368,19 @@ class GatewayService:
             if now - self._last_imu_t >= TICK_S:
                 self._send(self.core.poll(now))
                 self._release_fixes(now - HOLD_MAX_S)
+
+    async def _run_state(self, keeper: StateKeeper) -> None:
+        """Save what the engine has learned every ``save_interval_s`` (service time), if
+        better than what is stored; the blocking write in a worker thread."""
+        while True:
+            await asyncio.sleep(self.timebase.wall_s(self.config.state.save_interval_s))
+            try:
+                state = keeper.snapshot(self.core)
+            except Exception:  # never fatal: the gateway runs on without a saved state
+                log.exception("learned state not saved to %s", keeper.path)
+                continue
+            if state is not None and await asyncio.to_thread(keeper.write, state):
+                log.info("learned state saved to %s", keeper.path)
 
     async def _run_health(self) -> None:
         watchdog_s = self.notifier.watchdog_interval_s

@@ -76,6 +76,7 @@ from gateway.estimation.engine_base import (
     ImuHealth,
     common_fields,
     dead_reckoning_output,
+    levelling_correction,
 )
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
@@ -85,6 +86,7 @@ from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
     Convergence,
+    LearnedState,
     Mode,
     Solution,
     navigation_mode,
@@ -235,6 +237,11 @@ class EkfEngine:
         # motion flags and IMU health
         self._reversing = False
         self._stationary = False
+        # a warm start (:meth:`seed`): the biases' prior and its variance per axis (the gyro's
+        # combined with the rest mean when there is one); None: the turn-on sigmas
+        self._seed: LearnedState | None = None
+        self._seed_var_g = np.zeros(3)
+        self._rest_mean_g_rps: list[float] = []  # mean rate of the last window at rest
 
     # ======================================================================== prediction
 
@@ -319,8 +326,71 @@ class EkfEngine:
         if self._win_at_rest:
             self._ins.bias_g_rps = [float(x) for x in mean[3:]]
             self._rest_bias_s = span
+            self._rest_mean_g_rps = self._ins.bias_g_rps
         self._sigma_level_rad = self._win_motion.tilt_sigma_rad()
         self._t_levelled_s = t
+        if self._seed is not None:
+            self._apply_seed(self._seed)
+
+    # ======================================================================= warm start
+
+    def seed(self, learned: LearnedState) -> bool:
+        """Start from learned biases (a warm start, or the engine this one replaces after an
+        IMU gap): accepted until the filter starts (P exists once the heading is known).
+
+        The INS takes the biases; the tilt levelled so far takes the accelerometer bias out
+        (:func:`levelling_correction`), and every later levelling too; a gyro mean at rest
+        is combined with the seed by their variances. At heading alignment P's bias blocks
+        start from the seed's sigmas (not the turn-on ones), and the tilt's share of the
+        accelerometer bias error with them.
+        """
+        if self._p is not None or self._seed is not None or not learned.is_valid():
+            return False
+        self._seed = learned
+        if self._ins is not None:
+            self._apply_seed(learned)
+        return True
+
+    def _apply_seed(self, s: LearnedState) -> None:
+        """The seed on an INS just levelled from the mean specific force (bias 0 in it)."""
+        ins = self._ins
+        assert ins is not None
+        ins.rotate(exp_so3(levelling_correction(ins.c_bn9, s.bias_a_mps2)))
+        ins.bias_a_mps2 = [float(x) for x in s.bias_a_mps2]
+        var_s = np.array(s.sigma_g_rps) ** 2
+        bg_s = np.array(s.bias_g_rps)
+        if self._rest_bias_s > 0.0:  # a mean rate at rest: combine the two
+            assert self._tuning is not None
+            var_r = self._tuning.q_gyro_rad2_per_s / self._rest_bias_s + EARTH_RATE_RPS**2
+            bg = bg_s + var_s / (var_s + var_r) * (np.array(self._rest_mean_g_rps) - bg_s)
+            self._seed_var_g = var_s * var_r / (var_s + var_r)
+        else:
+            bg, self._seed_var_g = bg_s, var_s
+        ins.bias_g_rps = [float(x) for x in bg]
+
+    def learned_state(self) -> LearnedState | None:
+        """Bias estimates and their 1-sigma from P; before P, the seed (with the rest mean
+        in the gyro's), or None."""
+        ins, p = self._ins, self._p
+        if p is None:
+            s = self._seed
+            if s is None or ins is None:
+                return s
+            sg = np.sqrt(self._seed_var_g)
+            return LearnedState(
+                bias_g_rps=(ins.bias_g_rps[0], ins.bias_g_rps[1], ins.bias_g_rps[2]),
+                sigma_g_rps=(float(sg[0]), float(sg[1]), float(sg[2])),
+                bias_a_mps2=s.bias_a_mps2,
+                sigma_a_mps2=s.sigma_a_mps2,
+            )
+        assert ins is not None
+        d = np.sqrt(np.diag(p))
+        return LearnedState(
+            bias_g_rps=(ins.bias_g_rps[0], ins.bias_g_rps[1], ins.bias_g_rps[2]),
+            sigma_g_rps=(float(d[BG][0]), float(d[BG][1]), float(d[BG][2])),
+            bias_a_mps2=(ins.bias_a_mps2[0], ins.bias_a_mps2[1], ins.bias_a_mps2[2]),
+            sigma_a_mps2=(float(d[BA][0]), float(d[BA][1]), float(d[BA][2])),
+        )
 
     # ======================================================================= corrections
 
@@ -512,8 +582,15 @@ class EkfEngine:
         m = np.zeros((3, 3))
         m[0] = c_bn[1] / GRAVITY_MPS2
         m[1] = -c_bn[0] / GRAVITY_MPS2
-        p[ATT, ATT] += sig_ba**2 * m @ m.T
-        p[ATT, BA] = sig_ba**2 * m
+        if self._seed is None:
+            p[ATT, ATT] += sig_ba**2 * m @ m.T
+            p[ATT, BA] = sig_ba**2 * m
+        else:  # the seed's sigmas per axis (the levelling took its bias out)
+            var_ba = np.array(self._seed.sigma_a_mps2) ** 2
+            p[BA, BA] = np.diag(var_ba)
+            p[BG, BG] = np.diag(self._seed_var_g)
+            p[ATT, ATT] += (m * var_ba) @ m.T
+            p[ATT, BA] = m * var_ba
         p[BA, ATT] = p[ATT, BA].T
         self._set_fix_error_model(sig_pos, restart=True)
         self._set_from_fix(fix, t_e, row_aligned)
@@ -521,9 +598,12 @@ class EkfEngine:
         self._t_accepted_rx_s = fix.t
 
     def _levelled_gyro_bias_sigma_rps(self) -> float:
-        """Gyro bias 1-sigma before the filter runs: the rest mean's, else the turn-on one."""
+        """Gyro bias 1-sigma before the filter runs: the seed's (x/y, with the rest mean's),
+        else the rest mean's, else the turn-on one."""
         tun = self._tuning
         assert tun is not None
+        if self._seed is not None:
+            return math.sqrt(max(self._seed_var_g[0], self._seed_var_g[1]))
         if self._rest_bias_s > 0.0:
             return math.sqrt(tun.q_gyro_rad2_per_s / self._rest_bias_s + EARTH_RATE_RPS**2)
         return tun.sigma_bias_g0_rps
@@ -537,9 +617,10 @@ class EkfEngine:
         if self._ins is None or tun is None or self._t_s is None:
             return None
         drift = self._levelled_gyro_bias_sigma_rps() * max(0.0, self._t_s - self._t_levelled_s)
-        return math.sqrt(
-            (tun.sigma_bias_a0_mps2 / GRAVITY_MPS2) ** 2 + self._sigma_level_rad**2 + drift**2
-        )
+        sig_ba = tun.sigma_bias_a0_mps2
+        if self._seed is not None:
+            sig_ba = max(self._seed.sigma_a_mps2[0], self._seed.sigma_a_mps2[1])
+        return math.sqrt((sig_ba / GRAVITY_MPS2) ** 2 + self._sigma_level_rad**2 + drift**2)
 
     def _reset_from_fix(self, fix: GnssFix, t_e: float, row: Array) -> None:
         """Recovery after a long outage or a run of rejections: position/velocity from GNSS.

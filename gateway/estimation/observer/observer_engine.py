@@ -38,6 +38,8 @@ from gateway.estimation.engine_base import (
     ImuHealth,
     common_fields,
     dead_reckoning_output,
+    levelling_correction,
+    seeded_exponent,
 )
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
@@ -50,7 +52,13 @@ from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.position_channel import PositionChannel
 from gateway.estimation.observer.tereshkov import TereshkovObserver
-from gateway.estimation.solution import Convergence, Mode, Solution, navigation_mode
+from gateway.estimation.solution import (
+    Convergence,
+    LearnedState,
+    Mode,
+    Solution,
+    navigation_mode,
+)
 
 #: History kept for late GNSS epochs, samples (5 s at 204.8 Hz): latency + one interval.
 HISTORY_LEN = 1024
@@ -165,6 +173,7 @@ class ObserverEngine:
         self.counters = ObserverCounters()
         self._log = LogLimiter(log)
         self._track = GnssTrack()  # the receiver's own track: glitch or engine off?
+        self._seed: LearnedState | None = None  # what a warm start gave (:meth:`seed`)
 
     # ======================================================================== prediction
 
@@ -303,6 +312,65 @@ class ObserverEngine:
             self.cfg.tau_g_s,
             self.cfg.omega_a_dps * DEG_TO_RAD,
             dcm_from_rpy(roll, pitch, 0.0),
+        )
+        if self._seed is not None:
+            self._apply_seed(self._observer, self._seed)
+
+    # ======================================================================= warm start
+
+    def seed(self, learned: LearnedState) -> bool:
+        """Start from learned biases (a warm start, or the engine this one replaces after an
+        IMU gap): accepted until the observer begins to learn on its own (the learning
+        hold-off after the first usable epochs), refused without bias estimation.
+
+        The biases replace the turn-on guess (the z gyro bias through the heading channel's
+        KF, as an observation of its sigma); the learning exponents are set to what the
+        sigma model needs to say the seed's sigmas, so the convergence flags and the roll/pitch
+        sigma (NAVGW_STATUS bytes 5, 7) state the seed's accuracy, no better. A tilt already
+        levelled takes the accelerometer bias out (:func:`levelling_correction`).
+        """
+        obs = self._observer
+        started = self._g_learn > 0.0 or self._a_learn > 0.0 or (obs is not None and obs.learn)
+        started |= self._seed is not None
+        if started or not self.cfg.estimate_biases or not learned.is_valid():
+            return False
+        self._seed = learned
+        if obs is not None:
+            self._apply_seed(obs, learned)
+        return True
+
+    def _apply_seed(self, obs: TereshkovObserver, s: LearnedState) -> None:
+        ba = obs.ba_hat_mps2
+        dba = (s.bias_a_mps2[0] - ba[0], s.bias_a_mps2[1] - ba[1], s.bias_a_mps2[2] - ba[2])
+        obs.rotate(levelling_correction(obs.c_bp9, (float(dba[0]), float(dba[1]), float(dba[2]))))
+        obs.set_biases(s.bias_g_rps, s.bias_a_mps2)
+        kf = self._heading.kf
+        kf.update(s.bias_g_rps[2] - kf.x_rps, s.sigma_g_rps[2] ** 2)
+        obs.set_gyro_bias_z(self._heading.bg_z_rps)
+        cfg = self.cfg
+        self._g_learn = seeded_exponent(
+            cfg.gyro_bias_sigma0_dps * DEG_TO_RAD, max(s.sigma_g_rps[0], s.sigma_g_rps[1])
+        )
+        self._a_learn = seeded_exponent(
+            cfg.accel_bias_sigma0_mps2, max(s.sigma_a_mps2[0], s.sigma_a_mps2[1])
+        )
+
+    def learned_state(self) -> LearnedState | None:
+        """Bias estimates with the sigmas the observer states for them: x/y from the learning
+        exponents (floored at the paper's residual level), z gyro from the heading channel's
+        KF; the z accelerometer bias is not observed here, so it keeps the seed's value and
+        sigma (else 0 and the turn-on sigma)."""
+        obs = self._observer
+        if obs is None:
+            return self._seed
+        bg, ba = obs.bg_hat_rps, obs.ba_hat_mps2
+        sg, sa = self._sigma_bg_rps(), self._sigma_ba_mps2()
+        sa_z = self._seed.sigma_a_mps2[2] if self._seed else self.cfg.accel_bias_sigma0_mps2
+        return LearnedState(
+            bias_g_rps=(float(bg[0]), float(bg[1]), float(bg[2])),
+            sigma_g_rps=(sg, sg, self._heading.kf.sigma_rps),
+            bias_a_mps2=(float(ba[0]), float(ba[1]), float(ba[2])),
+            sigma_a_mps2=(sa, sa, sa_z),
         )
 
     # ======================================================================= corrections
@@ -907,6 +975,11 @@ class ObserverEngine:
         sigma0 = self.cfg.gyro_bias_sigma0_dps * DEG_TO_RAD
         return max(sigma0 * math.exp(-self._g_learn), GYRO_BIAS_FLOOR_RPS)
 
+    def _sigma_ba_mps2(self) -> float:
+        """x/y accelerometer bias 1-sigma: the turn-on sigma decaying with the exponent."""
+        sigma0 = self.cfg.accel_bias_sigma0_mps2
+        return max(sigma0 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2)
+
     def _sigma_tilt_rad(self, coasting_s: float) -> float:
         """Roll/pitch 1-sigma from the observer's physics (seed 000, eqs. 3, 8, 10).
 
@@ -927,7 +1000,7 @@ class ObserverEngine:
         cfg = self.cfg
         g = GRAVITY_MPS2
         sigma_bg = self._sigma_bg_rps()
-        sigma_ba = max(cfg.accel_bias_sigma0_mps2 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2)
+        sigma_ba = self._sigma_ba_mps2()
         arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
         return math.sqrt(

@@ -157,6 +157,15 @@ class TereshkovObserver:
         """C <- Rz(dpsi) C: a direct heading change (alignment), tilt untouched."""
         self._c = dcm_mul(to_mat9(exp_so3((0.0, 0.0, dpsi_rad))), self._c)
 
+    def rotate(self, phi_rad: Float3) -> None:
+        """C <- exp([phi]x) C: a small rotation in the platform (NED) frame (a re-levelling)."""
+        self._c = dcm_mul(to_mat9(exp_so3(phi_rad)), self._c)
+
+    def set_biases(self, bg_rps: Float3, ba_mps2: Float3) -> None:
+        """Both bias estimates at once (a warm start), used from the next sample on."""
+        self._bg_rps = [float(bg_rps[0]), float(bg_rps[1]), float(bg_rps[2])]
+        self._ba_mps2 = [float(ba_mps2[0]), float(ba_mps2[1]), float(ba_mps2[2])]
+
     def set_gyro_bias_z(self, bg_z_rps: float) -> None:
         """The heading channel's z-gyro bias estimate, used from the next sample on."""
         self._bg_rps[2] = bg_z_rps
