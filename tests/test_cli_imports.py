@@ -34,7 +34,8 @@ print(json.dumps(heavy))
 
 @pytest.mark.parametrize(
     "argv", [["--help"], ["run", "--config", "navgw.toml"], ["replay", "--can", "a", "--nmea",
-             "b", "--out", "c"], ["config", "--example"]]
+             "b", "--out", "c"], ["config", "--example"],
+             ["calibrate", "--can", "a", "--nmea", "b"]]
 )  # fmt: skip
 def test_the_service_and_help_import_no_simulator(argv: list[str]) -> None:
     out = subprocess.run(

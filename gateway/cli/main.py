@@ -32,6 +32,7 @@ COMMANDS = {
         "gateway.cli.cmd_replay",
         "run recorded logs through the gateway, write its output frames",
     ),
+    "calibrate": ("gateway.cli.cmd_calibrate", "estimate the IMU mounting from a recorded drive"),
     "config": ("gateway.cli.cmd_config", "print an example config, or check a config file"),
     "state": (
         "gateway.cli.cmd_state",

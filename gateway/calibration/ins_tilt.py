@@ -1,0 +1,240 @@
+"""The mounting's roll and pitch from an INS: the IMU axes' tilt against the body's.
+
+An engine fed the IMU samples integrates the gyros, so the attitude it converges to is that
+of the IMU's own axes: a turn rotates an accelerometer bias with the IMU and gravity not,
+which tells the bias from a tilt of the axes (ALGORITHMS.md 1, eq. 12). It cannot tell its
+heading from the course (that channel is steered to it), but its roll and pitch are the
+IMU's. The body's are on the ground:
+
+- pitch: a wheeled vehicle drives along its own x axis, so the body's pitch is the slope of
+  its track, which RTK heights give (d h / d s); the engine's pitch minus that slope, over
+  forward driving, is the mounting's pitch;
+- roll: nothing on one pass tells the ground's cross slope, but on the same place driven the
+  other way the body's roll is opposite and the mounting's is not: the mean of the engine's
+  roll both ways over the same cells of ground is the mounting's roll.
+
+Only epochs where the engine navigates with its accelerometer biases learnt count. Running
+sums, but for the cells: a bounded map (``MAX_CELLS``) of ``cell_m`` squares around the
+first position.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+from drivers.samples import FixQuality, GnssFix, ImuSample
+from drivers.units import wrap_pi
+from gateway.estimation.solution import Estimator, Mode, Solution
+
+#: Ground cells kept (4 m cells: 80 km of single track); later cells are not started.
+MAX_CELLS = 20_000
+#: Cells are grouped into blocks of this many a side, whose errors count as independent.
+BLOCK_CELLS = 5
+#: Forward driving is cut into segments this long: their scatter gives the pitch's sigma ...
+SEGMENT_M = 50.0
+#: ... and shorter ones (at the end of a stretch) are not used: their end heights dominate.
+MIN_SEGMENT_M = 20.0
+_EARTH_RADIUS_M = 6_371_000.0
+_OPPOSITE_RAD = 0.75 * math.pi  # headings at least this far apart count as opposite
+_SAME_RAD = 0.25 * math.pi  # ... at most this far apart as the same way
+
+
+@dataclass(frozen=True, slots=True)
+class TiltEstimate:
+    """One axis: the mounting angle (rad, None before anything usable), its 1-sigma (rad),
+    how much drive went in and how much was driven in all (m: forward for pitch; both ways
+    on the same cells, the lesser way, for roll; in all: whether or not the engine had learnt
+    its biases yet)."""
+
+    angle_rad: float | None
+    sigma_rad: float
+    distance_m: float
+    driven_m: float
+
+
+@dataclass(slots=True)
+class _BlockMean:
+    """A weighted mean over blocks of rows, by running sums: per block its weight W, its
+    weighted sum B and its distance; the scatter between blocks is sum (B - mean W)^2."""
+
+    blocks: int = 0
+    weight: float = 0.0
+    weighted: float = 0.0
+    distance_m: float = 0.0
+    bb: float = 0.0
+    bw: float = 0.0
+    ww: float = 0.0
+
+    def add(self, weight: float, weighted: float, distance_m: float) -> None:
+        """One block."""
+        self.blocks += 1
+        self.weight += weight
+        self.weighted += weighted
+        self.distance_m += distance_m
+        self.bb += weighted * weighted
+        self.bw += weighted * weight
+        self.ww += weight * weight
+
+    def estimate(self, floor_rad: float, driven_m: float) -> TiltEstimate:
+        """The mean; its 1-sigma from the scatter (errors independent between blocks, times
+        G / (G - 1)), no less than ``floor_rad``; unknown with fewer than two blocks."""
+        if self.weight <= 0.0:
+            return TiltEstimate(None, math.inf, self.distance_m, driven_m)
+        mean = self.weighted / self.weight
+        g = self.blocks
+        scatter = max(self.bb - 2.0 * mean * self.bw + mean * mean * self.ww, 0.0)
+        variance = scatter * g / max(g - 1, 1) / self.weight**2
+        sigma = math.sqrt(variance + floor_rad**2) if g > 1 else math.inf
+        return TiltEstimate(mean, sigma, self.distance_m, driven_m)
+
+
+@dataclass(slots=True)
+class _Cell:
+    """Sums of one cell of ground, per way (the first way it was driven, the opposite):
+    distance driven, distance with the biases learnt, and that distance times the roll."""
+
+    heading_rad: float
+    ways: tuple[list[float], list[float]]  # [m, learnt m, roll m] each way
+
+
+class InsTilt:
+    """Feeds an engine and compares its roll and pitch with the ground's."""
+
+    def __init__(
+        self,
+        engine: Estimator,
+        antenna_lever_arm_m: tuple[float, float, float],
+        cell_m: float = 4.0,
+        min_speed_mps: float = 1.0,
+        fix_qualities: tuple[int, ...] = (FixQuality.RTK_FIXED,),
+    ) -> None:
+        self.engine = engine
+        self.l_ant = antenna_lever_arm_m
+        self.cell_m = cell_m
+        self.min_speed_mps = min_speed_mps
+        self.fix_qualities = fix_qualities
+        self.learnt = False  # the engine's accelerometer biases converged at some point
+        self.sigma_tilt_rad = math.inf  # the engine's own roll/pitch 1-sigma, last
+        self._origin: tuple[float, float] | None = None
+        self._t_s: float | None = None  # the previous epoch's receipt
+        self._cells: dict[tuple[int, int], _Cell] = {}
+        self._last: tuple[float, float] | None = None  # height, pitch at the segment's end
+        self._segment = [0.0, 0.0, 0.0]  # distance m, sum tan(pitch) ds, height at start
+        self._segments = _BlockMean()  # per segment: distance, distance x pitch estimate
+        self._forward_m = 0.0  # usable forward driving, learnt or not
+
+    def imu(self, sample: ImuSample) -> None:
+        """One IMU sample for the engine."""
+        self.engine.imu(sample)
+
+    def gnss(self, fix: GnssFix) -> None:
+        """One GNSS epoch for the engine; then its solution is compared with the ground."""
+        self.engine.gnss(fix)
+        sol = self.engine.solution()
+        dt_s = fix.t - self._t_s if self._t_s is not None else 0.0
+        self._t_s = fix.t
+        moving = (
+            sol.mode is Mode.NAVIGATING
+            and not sol.reversing
+            and int(fix.quality) in self.fix_qualities
+            and fix.sog_mps is not None
+            and fix.sog_mps >= self.min_speed_mps
+            and fix.alt_m is not None
+        )
+        learnt = sol.convergence.accel_xy
+        if learnt and sol.sigma_tilt_rad is not None:
+            self.learnt = True
+            self.sigma_tilt_rad = sol.sigma_tilt_rad
+        if not moving or fix.sog_mps is None or fix.alt_m is None:
+            self._end_segment()
+            return
+        ds_m = fix.sog_mps * dt_s
+        self._forward_m += ds_m
+        self._roll(sol, ds_m, learnt)
+        if learnt:
+            self._pitch(sol, ds_m, fix.alt_m)
+        else:
+            self._end_segment()
+
+    def _pitch(self, sol: Solution, ds_m: float, alt_m: float) -> None:
+        """Add the stretch since the last epoch to the current segment of forward driving."""
+        pitch = sol.pitch_rad or 0.0
+        lx, _, lz = self.l_ant
+        height = alt_m - math.sin(pitch) * lx + math.cos(pitch) * lz  # the reference point's
+        last, self._last = self._last, (height, pitch)
+        if last is None:
+            self._segment = [0.0, 0.0, height]
+            return
+        self._segment[0] += ds_m
+        self._segment[1] += 0.5 * (math.tan(pitch) + math.tan(last[1])) * ds_m
+        if self._segment[0] >= SEGMENT_M:
+            self._end_segment()
+            self._last = (height, pitch)
+            self._segment = [0.0, 0.0, height]
+
+    def _end_segment(self) -> None:
+        """Close the segment of forward driving."""
+        if (segment := self._segment_estimate()) is not None:
+            self._segments.add(segment[0], segment[0] * segment[1], segment[0])
+        self._last = None
+        self._segment = [0.0, 0.0, 0.0]
+
+    def _segment_estimate(self) -> tuple[float, float] | None:
+        """The open segment's (distance m, mean tan(pitch) of the axes - slope of the track)."""
+        distance, tan_sum, height0 = self._segment
+        if self._last is None or distance < MIN_SEGMENT_M:
+            return None
+        return distance, (tan_sum - (self._last[0] - height0)) / distance
+
+    def _roll(self, sol: Solution, ds_m: float, learnt: bool) -> None:
+        """Add the epoch's roll to its cell of ground, on the way it faces."""
+        if sol.lat_deg is None or sol.lon_deg is None or sol.yaw_rad is None:
+            return
+        if self._origin is None:
+            self._origin = (sol.lat_deg, sol.lon_deg)
+        lat0, lon0 = self._origin
+        north = math.radians(sol.lat_deg - lat0) * _EARTH_RADIUS_M
+        east = math.radians(sol.lon_deg - lon0) * _EARTH_RADIUS_M * math.cos(math.radians(lat0))
+        key = (math.floor(north / self.cell_m), math.floor(east / self.cell_m))
+        cell = self._cells.get(key)
+        if cell is None:
+            if len(self._cells) >= MAX_CELLS:
+                return
+            cell = self._cells[key] = _Cell(sol.yaw_rad, ([0.0, 0.0, 0.0], [0.0, 0.0, 0.0]))
+        off = abs(wrap_pi(sol.yaw_rad - cell.heading_rad))
+        way = 0 if off <= _SAME_RAD else 1 if off >= _OPPOSITE_RAD else None
+        if way is not None:
+            sums = cell.ways[way]
+            sums[0] += ds_m
+            if learnt:
+                sums[1] += ds_m
+                sums[2] += ds_m * (sol.roll_rad or 0.0)
+
+    def pitch(self) -> TiltEstimate:
+        """Mounting pitch: distance-weighted over the segments, the scatter between them."""
+        segments = dataclasses.replace(self._segments)
+        if (segment := self._segment_estimate()) is not None:
+            segments.add(segment[0], segment[0] * segment[1], segment[0])
+        return segments.estimate(self.sigma_tilt_rad, self._forward_m)
+
+    def roll(self) -> TiltEstimate:
+        """Mounting roll: per cell driven both ways, the mean roll of the two ways, weighted
+        by the lesser way's distance; the scatter between blocks of cells. The engine's own
+        tilt sigma is the floor: its bias errors are the same both ways."""
+        blocks: dict[tuple[int, int], list[float]] = {}
+        driven_m = 0.0
+        for (kn, ke), cell in self._cells.items():
+            (m0, l0, r0), (m1, l1, r1) = cell.ways
+            driven_m += min(m0, m1)
+            if l0 > 0.0 and l1 > 0.0:
+                weight = l0 * l1 / (l0 + l1)
+                sums = blocks.setdefault((kn // BLOCK_CELLS, ke // BLOCK_CELLS), [0.0, 0.0, 0.0])
+                sums[0] += weight
+                sums[1] += weight * 0.5 * (r0 / l0 + r1 / l1)
+                sums[2] += min(l0, l1)
+        mean = _BlockMean()
+        for weight, weighted, distance_m in blocks.values():
+            mean.add(weight, weighted, distance_m)
+        return mean.estimate(self.sigma_tilt_rad, driven_m)
