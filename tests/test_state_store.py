@@ -301,10 +301,11 @@ def test_merge_keeps_the_better_axis_and_says_if_anything_was_learned() -> None:
 
 def test_state_section_of_the_config(tmp_path: Path) -> None:
     toml = tmp_path / "navgw.toml"
-    toml.write_text('[state]\ndirectory = "/tmp/x"\nsave_interval_s = 60.0\nenabled = false\n')
+    toml.write_text('[state]\ndirectory = "/tmp/x"\nsave_interval_s = 60.0\nenabled = true\n')
     assert load_config(toml).state == StateSection(
-        enabled=False, directory="/tmp/x", save_interval_s=60.0
+        enabled=True, directory="/tmp/x", save_interval_s=60.0
     )
+    assert not StateSection().enabled  # opt-in: a power-cycled IMU's biases may not repeat
     toml.write_text("[state]\nsave_interval_s = 1.0\n")
     with pytest.raises(ValueError, match=r"state.save_interval_s = 1.0: expected a value in"):
         load_config(toml)

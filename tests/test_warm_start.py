@@ -163,7 +163,7 @@ def test_the_service_saves_while_running_and_at_a_clean_stop(runs: Runs, tmp_pat
         base,
         imu=dataclasses.replace(base.imu, interface="virtual", channel=f"ws{id(tmp_path)}"),
         gnss=GnssSection(port=str(tmp_path / "no-receiver")),
-        state=StateSection(directory=str(state_dir), save_interval_s=10.0),
+        state=StateSection(enabled=True, directory=str(state_dir), save_interval_s=10.0),
     )
     inputs = list(LogInputs(runs.second.imu_log, runs.second.gnss_log, imu_config(config)))
 

@@ -245,8 +245,11 @@ class StateSection:
     """[state]: what the gateway learned of its IMU, kept across starts (warm start)."""
 
     enabled: bool = field(
-        default=True,
-        metadata=_doc("load the learned biases at start, save them while running and at stop"),
+        default=False,
+        metadata=_doc(
+            "load the learned biases at start, save them while running and at stop; only "
+            "where the IMU's biases carry over a restart (see README, Warm start)"
+        ),
     )
     directory: str = field(
         default="/var/lib/navgw",
