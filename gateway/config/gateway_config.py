@@ -288,6 +288,22 @@ class StateSection:
 
 
 #: Sections with a plain dataclass, in the order the example prints them.
+@dataclass(frozen=True)
+class CalibrationSection:
+    """[calibration]: the IMU mounting estimate of navgw calibrate, on the live inputs."""
+
+    live: bool = field(
+        default=True,
+        metadata=_doc(
+            "estimate the mounting while running: in the status and the log, never applied"
+        ),
+    )
+    report_interval_s: float = field(
+        default=300.0,
+        metadata=_doc("log the estimate this often", **in_range(10.0, 1e5)),
+    )
+
+
 SECTIONS: dict[str, type] = {
     "vehicle": VehicleSection,
     "estimator": EstimatorSection,
@@ -297,6 +313,7 @@ SECTIONS: dict[str, type] = {
     "output": OutputSection,
     "recording": RecordingSection,
     "state": StateSection,
+    "calibration": CalibrationSection,
 }
 
 #: Engine tuning sections; their shared fields come from [vehicle] and [gnss].
@@ -329,6 +346,7 @@ class GatewayConfig:
     output: OutputSection = OutputSection()
     recording: RecordingSection = RecordingSection()
     state: StateSection = StateSection()
+    calibration: CalibrationSection = CalibrationSection()
     observer: ObserverConfig = field(default_factory=ObserverConfig)
     ekf: EkfConfig = field(default_factory=EkfConfig)
 

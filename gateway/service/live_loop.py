@@ -22,6 +22,8 @@ is fast and runs inline):
   reopen the bus;
 - the tick task: advances the claim timers while no IMU frame arrives; the loop's heartbeat;
 - the health task: sd_notify STATUS every few seconds and WATCHDOG=1 while :meth:`healthy`;
+  the IMU mounting estimate (:mod:`gateway.service.mounting_watch`, fed every input after
+  the core) logged every ``[calibration] report_interval_s``;
 - the state task (``[state] enabled``): every ``save_interval_s`` the learned biases, if the
   engine has learned better ones, written to the state directory
   (:class:`~gateway.state.keeper.StateKeeper`); the write (an fsync, tens of ms on an ECU's
@@ -70,6 +72,7 @@ from gateway.fusion.fusion_core import FusionCore
 from gateway.isobus.address_claim import ClaimState
 from gateway.service.bus_links import BusPlan, BusSpec, EchoFilter, claim_filters, is_bus_down
 from gateway.service.input_recording import InputRecorder
+from gateway.service.mounting_watch import MountingWatch
 from gateway.service.sdnotify import SdNotifier
 from gateway.service.timebase import LIVE, TimeBase
 from gateway.state.keeper import StateKeeper
@@ -191,6 +194,11 @@ class GatewayService:
             config,
             self.imu_decoder.counters,
             warm_start=self.state.warm_start if self.state and self.state.stored else None,
+        )
+        self.mounting = (
+            MountingWatch(config, config.calibration.report_interval_s)
+            if config.calibration.live
+            else None
         )
         self.recorder = (
             InputRecorder(config.recording, plan.imu.channel, timebase.now)
@@ -346,8 +354,15 @@ class GatewayService:
                     )
                     await turns.take()
                     continue
-            self._send(self.core.on_input(item))
+            self.process(item)
             await turns.take()
+
+    def process(self, item: Input | GnssFix) -> None:
+        """One decoded input through the core (its frames sent), then to the mounting
+        estimate: what the loop does with each input, in time order."""
+        self._send(self.core.on_input(item))
+        if self.mounting is not None:
+            self.mounting.feed(item)
 
     def _release_fixes(self, before: float) -> None:
         """Feed the held GNSS fixes older than ``before`` (service time) to the core.
@@ -358,7 +373,7 @@ class GatewayService:
         after them goes in before the next sample.
         """
         while self._held and self._held[0].t < before:
-            self._send(self.core.on_input(self._held.popleft()))
+            self.process(self._held.popleft())
 
     async def _run_tick(self) -> None:
         while True:
@@ -406,6 +421,8 @@ class GatewayService:
             if self.core.solution().mode is not mode:
                 mode = self.core.solution().mode
                 log.info("mode %s", mode.name.lower())
+            if self.mounting is not None and (text := self.mounting.update(self.timebase.now())):
+                log.info("%s", text)
 
     # --- frames in and out ----------------------------------------------------------------
 
@@ -520,6 +537,8 @@ class GatewayService:
             parts.append(f"{self.core.claimer.name_conflicts} claims with our NAME (a clone)")
         if self.core.claimer.spoofed_frames:
             parts.append(f"{self.core.claimer.spoofed_frames} frames from our address not ours")
+        if self.mounting is not None:
+            parts.append(self.mounting.summary)
         return ", ".join(parts)
 
 
