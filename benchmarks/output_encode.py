@@ -22,8 +22,6 @@ import math
 import time
 from collections.abc import Callable
 
-import numpy as np
-
 from drivers.samples import FixQuality
 from gateway.estimation.solution import Convergence, Mode, Solution
 from gateway.isobus.j1939 import Pgn
@@ -51,8 +49,8 @@ def solution(t: float, k: int = 0) -> Solution:
         lon_deg=10.5 - 1e-6 * k,
         alt_m=80.0 + a,
         vel_ned_mps=(2.0, 1.0 + a, 0.0),
-        bias_g_rps=np.array([1e-4, 2e-4, 3e-4]),
-        bias_a_mps2=np.array([0.01, 0.02, 0.03]),
+        bias_g_rps=(1e-4, 2e-4, 3e-4),
+        bias_a_mps2=(0.01, 0.02, 0.03),
         sigma_tilt_rad=math.radians(0.2),
         fix_quality=FixQuality.RTK_FIXED,
         num_sats=15,

@@ -32,7 +32,7 @@ from gateway.estimation.attitude import dcm_from_rpy, roll_pitch_from_specific_f
 from gateway.estimation.geodesy import ned_to_lla
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
-from gateway.estimation.solution import Convergence, Estimator, Solution
+from gateway.estimation.solution import Convergence, Estimator, Float3, Solution
 
 Array = npt.NDArray[np.float64]
 
@@ -85,7 +85,7 @@ class _TiltSwapEngine(ABC):
         """Propagate the tilt source with one sample."""
 
     @abstractmethod
-    def _tilt(self) -> tuple[float, float, Array | None] | None:
+    def _tilt(self) -> tuple[float, float, Float3 | None] | None:
         """Roll, pitch (rad) and gyro bias estimate (3,) or None; None before alignment."""
 
 
@@ -95,7 +95,7 @@ class LevelEngine(_TiltSwapEngine):
     def _imu_tilt(self, sample: ImuSample) -> None:
         """Nothing to propagate."""
 
-    def _tilt(self) -> tuple[float, float, Array | None]:
+    def _tilt(self) -> tuple[float, float, Float3 | None]:
         return 0.0, 0.0, None
 
 
@@ -146,14 +146,17 @@ class AhrsEngine(_TiltSwapEngine):
             return
         self._q = self._filter.updateIMU(self._q, sample.w_ib_b, -sample.f_ib_b, dt=sample.dt)
 
-    def _tilt(self) -> tuple[float, float, Array | None] | None:
+    def _tilt(self) -> tuple[float, float, Float3 | None] | None:
         if self._q is None:
             return None
         from ahrs import Quaternion
 
         roll, pitch, _ = rpy_from_dcm(Quaternion(self._q).to_DCM())
         b = getattr(self._filter, "b", None)
-        return roll, pitch, None if b is None else np.array(b, dtype=float)
+        if b is None:
+            return roll, pitch, None
+        bx, by, bz = (float(x) for x in b)
+        return roll, pitch, (bx, by, bz)
 
 
 def _quaternion_from_dcm(c: Array) -> Array:

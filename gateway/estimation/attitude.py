@@ -33,14 +33,23 @@ def cross3(a: npt.ArrayLike, b: npt.ArrayLike) -> Array:
     return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
 
 
+_I3 = np.eye(3)
+_I3.flags.writeable = False
+
+
 def exp_so3(phi: npt.ArrayLike) -> Array:
-    """Rotation matrix exp([phi]x), shape (3, 3), by Rodrigues' formula (exact)."""
-    phi = np.asarray(phi, dtype=float)
-    angle = float(np.linalg.norm(phi))
-    k = skew(phi)
+    """Rotation matrix exp([phi]x), shape (3, 3), by Rodrigues' formula (exact).
+
+    The angle is ``np.linalg.norm``'s own sqrt(phi . phi) and the K^2 term ``(b K) @ K``, in
+    numpy, so the result is the same bits as ever; the rest skips numpy's per-call overhead.
+    """
+    a = np.asarray(phi, dtype=float)
+    x, y, z = a.tolist()
+    angle = math.sqrt(a.dot(a))
+    k = np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))
     if angle < 1e-8:
-        return np.eye(3) + k + 0.5 * k @ k
-    return np.eye(3) + math.sin(angle) / angle * k + (1.0 - math.cos(angle)) / angle**2 * k @ k
+        return _I3 + k + 0.5 * k @ k
+    return _I3 + math.sin(angle) / angle * k + (1.0 - math.cos(angle)) / angle**2 * k @ k
 
 
 def dcm_from_rpy_array(rpy_rad: npt.ArrayLike) -> Array:

@@ -13,7 +13,9 @@ from typing import Protocol
 
 import numpy as np
 
-from drivers.samples import FixQuality, GnssFix, ImuSample, Vec3
+from drivers.samples import FixQuality, GnssFix, ImuSample
+
+Float3 = tuple[float, float, float]
 
 
 class Mode(IntEnum):
@@ -37,12 +39,16 @@ class Convergence:
     learning_frozen: bool = False
 
 
-@dataclass(frozen=True, slots=True)
+@dataclass(slots=True)
 class Solution:
     """Corrected attitude and reference-point navigation at time ``t`` (host clock, s).
 
     A quantity the engine does not know yet is None (sent as "not available", never as a
     made-up zero). Position and velocity are of the vehicle reference point, not the antenna.
+
+    A value: never changed once built, a changed copy is ``dataclasses.replace``. Not
+    ``frozen`` only for speed: one is built 50 times a second, and a frozen dataclass's
+    ``__init__`` (``object.__setattr__`` per field) costs four times as much.
     """
 
     t: float
@@ -55,8 +61,8 @@ class Solution:
     lon_deg: float | None = None
     alt_m: float | None = None  # ellipsoidal height
     vel_ned_mps: tuple[float, float, float] | None = None
-    bias_g_rps: Vec3 | None = None  # gyro bias estimate, body FRD
-    bias_a_mps2: Vec3 | None = None  # accelerometer bias estimate, body FRD
+    bias_g_rps: Float3 | None = None  # gyro bias estimate, body FRD
+    bias_a_mps2: Float3 | None = None  # accelerometer bias estimate, body FRD
     sigma_tilt_rad: float | None = None  # roll/pitch 1-sigma
     fix_quality: FixQuality | None = None  # of the last GNSS fix used
     num_sats: int | None = None
@@ -148,9 +154,6 @@ def navigation_mode(
     if fix is None or int(fix.quality) not in navigating_fix_qualities:
         return Mode.DEGRADED
     return Mode.NAVIGATING
-
-
-Float3 = tuple[float, float, float]
 
 
 @dataclass(frozen=True, slots=True)

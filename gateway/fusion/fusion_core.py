@@ -219,41 +219,57 @@ class FusionCore:
     def on_imu(self, sample: ImuSample) -> Iterator[can.Message]:
         """Propagate with one sample, then send whatever is due at its time."""
         self.stats.imu_samples += 1
+        t = sample.t
         if sample.saturated:
-            self.stats.imu_saturated += 1
-            if not self._saturated and sample.t - self._last_saturation_log >= 10.0:
-                log.warning(
-                    "IMU saturated at t=%.3f (an axis at the end of its range): attitude "
-                    "unknown, FAULT until the engine has re-aligned", sample.t,
-                )  # fmt: skip
-                self._last_saturation_log = sample.t
-            self._saturated = True
-            return self._counted(chain(self._timers(sample.t), self._fault(sample.t)))
+            return self._on_saturated(sample)
         if self._warm_start is not None:
-            self._wait_for_temperature(sample.t)
+            self._wait_for_temperature(t)
         last = self._last_sample
-        gap = last is not None and abs(sample.t - last.t) >= RESTART_GAP_S
-        if (gap or self._saturated) and self._make_engine is not None:
-            learned = self.engine.learned_state()
-            self.engine = self._make_engine()
-            if learned is not None:
-                self.engine.seed(learned)
-            self.guard.forget_track()
-            self.stats.engine_restarts += 1
-            if gap and last is not None:
-                log.warning(
-                    "IMU samples resumed %.3f s after the last one at t=%.3f: the engine "
-                    "restarts (re-aligned before anything is sent)", sample.t - last.t, last.t,
-                )  # fmt: skip
-        self._saturated = False
+        gap = last is not None and abs(t - last.t) >= RESTART_GAP_S
+        if gap or self._saturated:
+            self._restart_engine(last if gap else None, t)
         self._last_sample = sample
         self.engine.imu(sample)
-        polled = self._timers(sample.t)
-        if not (self.claimer.claimed and self.scheduler.is_due(sample.t)):
-            return self._counted(polled) if polled else NOTHING  # most samples send nothing
-        sent = self._attributable(self.guard.check(self.engine.solution()), sample.t)
-        frames = self.scheduler.frames(sent, self.loop_status(sample.t), now=self._told(sent.mode))
-        return self._counted(chain(polled, frames))
+        # Most samples send nothing: a few comparisons, no call, no generator.
+        claimer = self.claimer
+        polled = (
+            self._timers(t) if t >= claimer.timer_t or t >= self.network.next_heartbeat_t else None
+        )
+        if not (t >= self.scheduler.next_due_t and claimer.claimed):
+            return self._counted(polled) if polled else NOTHING
+        sent = self._attributable(self.guard.check(self.engine.solution()), t)
+        frames = self.scheduler.frames(sent, self.loop_status(t), now=self._told(sent.mode))
+        return self._counted(chain(polled, frames) if polled else frames)
+
+    def _on_saturated(self, sample: ImuSample) -> Iterator[can.Message]:
+        """A saturated sample: not fed to the engine; NAVGW_STATUS says FAULT."""
+        self.stats.imu_saturated += 1
+        if not self._saturated and sample.t - self._last_saturation_log >= 10.0:
+            log.warning(
+                "IMU saturated at t=%.3f (an axis at the end of its range): attitude "
+                "unknown, FAULT until the engine has re-aligned", sample.t,
+            )  # fmt: skip
+            self._last_saturation_log = sample.t
+        self._saturated = True
+        return self._counted(chain(self._timers(sample.t), self._fault(sample.t)))
+
+    def _restart_engine(self, last: ImuSample | None, t: float) -> None:
+        """A new engine after a gap since ``last`` (None: after saturation), seeded with
+        what the old one had learned; without a factory the engine carries on."""
+        self._saturated = False
+        if self._make_engine is None:
+            return
+        learned = self.engine.learned_state()
+        self.engine = self._make_engine()
+        if learned is not None:
+            self.engine.seed(learned)
+        self.guard.forget_track()
+        self.stats.engine_restarts += 1
+        if last is not None:
+            log.warning(
+                "IMU samples resumed %.3f s after the last one at t=%.3f: the engine "
+                "restarts (re-aligned before anything is sent)", t - last.t, last.t,
+            )  # fmt: skip
 
     def _wait_for_temperature(self, t: float) -> None:
         """No IMU_AUX within WARM_START_WAIT_S of the first IMU sample: stay cold."""

@@ -165,6 +165,9 @@ class AddressClaimer:
         self._others: dict[int, int] = {}  # address -> NAME of the node holding it
         self._reserved = frozenset(reserved)  # used on the bus by nodes that do not claim
         self._deadline = 0.0
+        #: :meth:`poll` has nothing to do before this time (the deadline while waiting or
+        #: claiming, else never): a caller per IMU sample compares instead of calling.
+        self.timer_t = math.inf
         self._defended_until = -math.inf  # a contender we beat may send until it reads our claim
         self._conflict_at = -math.inf  # time of the last NAME conflict or spoofed frame
         self._reclaimed_at = -math.inf  # time of the last claim answering an address violation
@@ -192,7 +195,7 @@ class AddressClaimer:
     def start(self, now: float) -> list[can.Message]:
         """Ask every node for its claim, then wait a random 0-153 ms before claiming."""
         self.state = ClaimState.WAITING
-        self._deadline = now + self._rng.randrange(256) * DELAY_STEP_S
+        self._deadline = self.timer_t = now + self._rng.randrange(256) * DELAY_STEP_S
         request = int(Pgn.ADDRESS_CLAIM).to_bytes(_PGN_BYTES, "little")
         return [_message(Pgn.ISO_REQUEST, NULL_ADDRESS, request, now)]
 
@@ -205,6 +208,7 @@ class AddressClaimer:
             return self._claim_free_or_give_up(now)
         if self.state is ClaimState.CLAIMING and now >= self._deadline:
             self.state = ClaimState.CLAIMED
+            self.timer_t = math.inf
         return []
 
     def on_frame(self, msg: can.Message, now: float) -> list[can.Message]:
@@ -331,13 +335,14 @@ class AddressClaimer:
             ", ".join(f"0x{a:02X}" for a in sorted(taken)),
         )  # fmt: skip
         self.state = ClaimState.FAILED
+        self.timer_t = math.inf
         self.address = None
         return [self._claim_message(NULL_ADDRESS, now)]  # cannot claim
 
     def _claim(self, address: int, now: float) -> list[can.Message]:
         self.state = ClaimState.CLAIMING
         self.address = address
-        self._deadline = now + CONTENTION_S
+        self._deadline = self.timer_t = now + CONTENTION_S
         return [self._claim_message(address, now)]
 
     def _claim_message(self, source: int, now: float) -> can.Message:

@@ -16,9 +16,9 @@ import can
 import cantools
 
 import dbc
-from drivers.samples import CORRECTED_QUALITIES, FixQuality, Vec3
+from drivers.samples import CORRECTED_QUALITIES, FixQuality
 from drivers.units import SECONDS_PER_DAY, wrap_pi
-from gateway.estimation.solution import Solution
+from gateway.estimation.solution import Float3, Solution
 from gateway.isobus.fast_packet import FastPacketFragmenter
 from gateway.isobus.frame_codec import FrameCodec, Value
 from gateway.isobus.j1939 import (
@@ -114,11 +114,10 @@ def _wrap_2pi(angle_rad: float | None) -> float | None:
     return None if angle_rad is None else angle_rad % (2 * math.pi)
 
 
-def _axes(prefix: str, vec: Vec3 | None, scale: float) -> Values:
+def _axes(prefix: str, vec: Float3 | None, scale: float) -> Values:
     """``{prefix}_X/Y/Z`` from a body-frame vector, or all not available."""
     return {
-        f"{prefix}_{axis}": None if vec is None else float(vec[i]) * scale
-        for i, axis in enumerate("XYZ")
+        f"{prefix}_{axis}": None if vec is None else vec[i] * scale for i, axis in enumerate("XYZ")
     }
 
 

@@ -112,13 +112,15 @@ class OutputScheduler:
         for pgn, rate in self.rates_hz.items():
             by_rate.setdefault(rate, []).append(pgn)
         self._groups = [_Group(rate, tuple(pgns)) for rate, pgns in by_rate.items()]
-        self._next_due_t = -_INF  # earliest grid point not yet served
+        #: Earliest grid point not yet served: nothing is due before it (a caller per IMU
+        #: sample compares with it instead of calling :meth:`is_due`).
+        self.next_due_t = -_INF
         self._quiet_until = -_INF  # no PGN is due before this: the least group.quiet
         self._sid = SID_MODULO - 1  # the first instant sends SID 0
 
     def is_due(self, t: float) -> bool:
         """True when some PGN is due at ``t``: callers skip building a solution otherwise."""
-        return t >= self._next_due_t
+        return t >= self.next_due_t
 
     def due(self, t: float, only: Collection[Pgn] | None = None) -> list[Pgn]:
         """PGNs (of ``only``, if given) whose next grid slot has come at time ``t`` (marks
@@ -147,7 +149,7 @@ class OutputScheduler:
                 next_due = group.next_t
             if group.quiet < quiet_until:
                 quiet_until = group.quiet
-        self._next_due_t = next_due
+        self.next_due_t = next_due
         self._quiet_until = quiet_until
         return pgns
 

@@ -837,8 +837,8 @@ class EkfEngine:
             lon_deg=lon,
             alt_m=alt,
             vel_ned_mps=vel,
-            bias_g_rps=np.array(ins.bias_g_rps),
-            bias_a_mps2=np.array(ins.bias_a_mps2),
+            bias_g_rps=(ins.bias_g_rps[0], ins.bias_g_rps[1], ins.bias_g_rps[2]),
+            bias_a_mps2=(ins.bias_a_mps2[0], ins.bias_a_mps2[1], ins.bias_a_mps2[2]),
             sigma_tilt_rad=self._sigma_tilt_rad(),
             gnss_ok=p is not None
             and coasting_s == 0.0

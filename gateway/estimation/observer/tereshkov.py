@@ -193,11 +193,13 @@ class TereshkovObserver:
         return self._w_p_rps
 
     @property
-    def bg_hat_rps(self) -> Array:
-        """Gyro bias estimate, body FRD, shape (3,), rad/s."""
-        return np.array(self._bg_rps)
+    def bg_hat_rps(self) -> Float3:
+        """Gyro bias estimate, body FRD, rad/s."""
+        bg = self._bg_rps
+        return (bg[0], bg[1], bg[2])
 
     @property
-    def ba_hat_mps2(self) -> Array:
-        """Accelerometer bias estimate, body FRD, shape (3,), m/s^2."""
-        return np.array(self._ba_mps2)
+    def ba_hat_mps2(self) -> Float3:
+        """Accelerometer bias estimate, body FRD, m/s^2."""
+        ba = self._ba_mps2
+        return (ba[0], ba[1], ba[2])
