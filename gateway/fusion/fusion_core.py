@@ -127,6 +127,7 @@ class FusionCore:
         self._last_sample: ImuSample | None = None
         self._saturated = False  # saturated samples since the last good one
         self._told_mode: Mode | None = None  # mode of the last NAVGW_STATUS sent
+        self._loop = LoopStatus()  # the last loop status made (:meth:`loop_status`)
         self._last_saturation_log = -math.inf
         self._warm_start = warm_start  # asked once, at the first IMU_AUX
         self._t_first_imu: float | None = None
@@ -359,16 +360,23 @@ class FusionCore:
 
     def loop_status(self, t: float) -> LoopStatus:
         """What the loop adds to the solution: address, claim state, recent IMU losses (on
-        the bus, and dropped by the live loop)."""
+        the bus, and dropped by the live loop). The same object while none of it changes."""
         lost = self._imu_counters.lost + self.stats.imu_dropped
-        self._lost_marks.append((t, lost))
-        while self._lost_marks and self._lost_marks[0][0] < t - LOST_WINDOW_S:
-            self._lost_marks.popleft()
-        return LoopStatus(
-            source_address=self.claimer.address or DEFAULT_SOURCE_ADDRESS,
-            address_claimed=self.claimer.claimed,
-            imu_samples_lost=lost - self._lost_marks[0][1],
-        )
+        marks = self._lost_marks
+        marks.append((t, lost))
+        while marks and marks[0][0] < t - LOST_WINDOW_S:
+            marks.popleft()
+        claimer = self.claimer
+        loop = self._loop
+        address = claimer.address or DEFAULT_SOURCE_ADDRESS
+        lost_s = lost - marks[0][1]
+        if (
+            loop.source_address != address
+            or loop.address_claimed is not claimer.claimed
+            or loop.imu_samples_lost != lost_s
+        ):
+            loop = self._loop = LoopStatus(address, claimer.claimed, lost_s)
+        return loop
 
 
 def learned_text(learned: LearnedState) -> str:

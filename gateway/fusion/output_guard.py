@@ -37,14 +37,14 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable, Iterable
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 from enum import Enum
 
 from drivers.log_limit import LogLimiter
 from drivers.samples import FixQuality
 from drivers.units import DEG_TO_RAD
-from gateway.estimation.solution import Mode, Solution
+from gateway.estimation.solution import Float3, Mode, Solution
 
 log = logging.getLogger(__name__)
 
@@ -160,7 +160,10 @@ class OutputGuard:
             )
         vel = sol.vel_ned_mps
         if vel is not None and not (
-            all(math.isfinite(v) for v in vel) and math.hypot(*vel) <= lim.max_speed_mps
+            math.isfinite(vel[0])
+            and math.isfinite(vel[1])
+            and math.isfinite(vel[2])
+            and math.hypot(*vel) <= lim.max_speed_mps
         ):
             withhold(
                 Withheld.VELOCITY,
@@ -223,9 +226,10 @@ class OutputGuard:
         self._candidate = here
         if sol.t - track.t > lim.stale_s:
             return False
+        jump_m = _distance_m(track.lat_deg, track.lon_deg, lat, lon)
         withhold(
             Withheld.POSITION,
-            f"{_distance_m(track, here):.1f} m from the last position sent, moved on by its "
+            f"{jump_m:.1f} m from the last position sent, moved on by its "
             f"velocity over {sol.t - track.t:.3f} s; expected a continuous track",
             lat_deg=None, lon_deg=None, alt_m=None,
         )  # fmt: skip
@@ -237,21 +241,15 @@ class OutputGuard:
         lim = self.limits
         if not 0.0 <= dt <= lim.stale_s:
             return False
-        moved = _Track(
-            b.t,
-            a.lat_deg + a.vel_ne_mps[0] * dt / M_PER_DEG,
-            a.lon_deg
-            + a.vel_ne_mps[1] * dt / (M_PER_DEG * max(math.cos(a.lat_deg * DEG_TO_RAD), 1e-6)),
-            a.vel_ne_mps,
-            a.since_t,
-        )
-        speed_b = math.hypot(*b.vel_ne_mps)
+        vn, ve = a.vel_ne_mps
+        moved_lat = a.lat_deg + vn * dt / M_PER_DEG
+        moved_lon = a.lon_deg + ve * dt / (M_PER_DEG * max(math.cos(a.lat_deg * DEG_TO_RAD), 1e-6))
+        bn, be = b.vel_ne_mps
         allowed = lim.jump_allowance_m + 0.5 * lim.max_accel_mps2 * dt * dt
-        dv = math.hypot(b.vel_ne_mps[0] - a.vel_ne_mps[0], b.vel_ne_mps[1] - a.vel_ne_mps[1])
         return (
-            _distance_m(moved, b) <= allowed
-            and dv <= lim.max_accel_mps2 * dt + lim.jump_allowance_m
-            and speed_b <= lim.max_speed_mps
+            _distance_m(moved_lat, moved_lon, b.lat_deg, b.lon_deg) <= allowed
+            and math.hypot(bn - vn, be - ve) <= lim.max_accel_mps2 * dt + lim.jump_allowance_m
+            and math.hypot(bn, be) <= lim.max_speed_mps
         )
 
 
@@ -259,19 +257,19 @@ def _ok(x: float | None, limit: float) -> bool:
     return x is None or (math.isfinite(x) and abs(x) <= limit)
 
 
-def _vec_ok(v: Iterable[float] | None, limit: float) -> bool:
-    """Every element finite and within +/-limit (None: nothing to check). Plain floats: a
-    bias vector has three elements, and numpy costs 10 us a call here."""
-    return v is None or all(abs(x) <= limit for x in v)  # NaN fails <=, inf fails too
+def _vec_ok(v: Float3 | None, limit: float) -> bool:
+    """Every element finite and within +/-limit (None: nothing to check); NaN and inf fail
+    ``<=``."""
+    return v is None or (abs(v[0]) <= limit and abs(v[1]) <= limit and abs(v[2]) <= limit)
 
 
 def _deg(x: float | None) -> str:
     return "n/a" if x is None else f"{x / DEG_TO_RAD:.1f}"
 
 
-def _distance_m(a: _Track, b: _Track) -> float:
+def _distance_m(lat_a: float, lon_a: float, lat_b: float, lon_b: float) -> float:
     """Horizontal distance, local flat-earth (continuity checks: metres to kilometres)."""
-    dlon = (b.lon_deg - a.lon_deg + 180.0) % 360.0 - 180.0
-    dn = (b.lat_deg - a.lat_deg) * M_PER_DEG
-    de = dlon * M_PER_DEG * math.cos(0.5 * (a.lat_deg + b.lat_deg) * DEG_TO_RAD)
+    dlon = (lon_b - lon_a + 180.0) % 360.0 - 180.0
+    dn = (lat_b - lat_a) * M_PER_DEG
+    de = dlon * M_PER_DEG * math.cos(0.5 * (lat_a + lat_b) * DEG_TO_RAD)
     return math.hypot(dn, de)

@@ -19,6 +19,7 @@ import math
 from bisect import bisect_left
 from collections import deque
 from dataclasses import dataclass
+from operator import itemgetter
 from typing import Literal
 
 import numpy as np
@@ -74,6 +75,8 @@ E_NOISE_TAU_S = 10.0
 LEVER_RATE_WINDOW_S = 0.1
 #: Rate of turn output: mean body rate over this long before the last sample.
 OUTPUT_RATE_WINDOW_S = 0.05
+#: History rows searched first for a time (:meth:`ObserverEngine._history_at`).
+RECENT_ROWS = 64
 #: Height loop time constant, s: GNSS gives no vertical velocity and the z accelerometer bias
 #: is not estimated, so the height (a double integrator) needs a firm loop whatever the fix's
 #: sigma: weighed by a float fix's 0.4 m, it drifted 60 m in a float spell.
@@ -90,6 +93,7 @@ ACCEL_BIAS_FLOOR_MPS2 = 0.01
 _Row = tuple[float, float, float, float, float, float, float, float, float]
 _T, _SF, _PSI, _HC, _WI = 0, slice(1, 4), 4, 5, slice(6, 9)
 _SF_N, _SF_E, _SF_D, _WI_X, _WI_Y, _WI_Z = 1, 2, 3, 6, 7, 8
+_row_time = itemgetter(_T)
 
 
 log = logging.getLogger(__name__)
@@ -518,7 +522,11 @@ class ObserverEngine:
             return None
         if t_s >= hist[-1][_T]:
             return hist[-1]
-        i = bisect_left(hist, t_s, key=lambda r: r[_T])
+        # Most lookups are within the last ~0.3 s: search those rows first (the same index).
+        lo = len(hist) - RECENT_ROWS
+        if lo <= 0 or not hist[lo][_T] < t_s:
+            lo = 0
+        i = bisect_left(hist, t_s, lo, key=_row_time)
         a, b = hist[i - 1], hist[i]
         u = (t_s - a[_T]) / (b[_T] - a[_T])
         psi = (a[_PSI] + u * wrap_pi(b[_PSI] - a[_PSI])) % (2.0 * math.pi)
