@@ -71,6 +71,7 @@ from gateway.estimation.ekf.error_state import (
     process_noise_psd,
     transition_matrix,
 )
+from gateway.estimation.ekf.ins_history import ROW_C, ROW_P, ROW_V, InsHistory
 from gateway.estimation.engine_base import (
     HeldEpochs,
     ImuHealth,
@@ -106,10 +107,6 @@ COG_RELIABLE_SPEED_MPS = 0.1
 #: Half width of the window of body rates averaged for the antenna lever-arm velocity.
 LEVER_RATE_HALF_WIDTH_S = 0.05
 
-# history row columns: t, p (3), v (3), C_bn row major (9), w_b (3)
-_T, _P, _V, _C, _W = 0, slice(1, 4), slice(4, 7), slice(7, 16), slice(16, 19)
-_ROW = 19
-
 
 @dataclass
 class EkfCounters:
@@ -121,68 +118,6 @@ class EkfCounters:
     nonholonomic_rejected: int = 0
     late_epochs: int = 0  # epoch older than the INS history: dropped
     resets: int = 0  # position/velocity re-initialised from GNSS
-
-
-class _History:
-    """Ring buffer of INS rows (numpy, shape (n, 19)) for epochs that arrive late."""
-
-    def __init__(self, n: int) -> None:
-        self._buf = np.zeros((n, _ROW))
-        self._head = 0
-        self._count = 0
-
-    def append(self, row: tuple[float, ...]) -> None:
-        self._buf[self._head] = row
-        self._head = (self._head + 1) % len(self._buf)
-        self._count = min(self._count + 1, len(self._buf))
-
-    def _ordered(self) -> Array:
-        if self._count < len(self._buf):
-            return self._buf[: self._count]
-        return np.concatenate((self._buf[self._head :], self._buf[: self._head]))
-
-    def at(self, t_s: float) -> Array | None:
-        """Row (19,) linearly interpolated at ``t_s``; None if outside the history."""
-        rows = self._ordered()
-        if len(rows) == 0 or not rows[0, _T] <= t_s <= rows[-1, _T]:
-            return None
-        i = int(np.searchsorted(rows[:, _T], t_s))
-        if i == 0:
-            return rows[0].copy()
-        a, b = rows[i - 1], rows[i]
-        u = (t_s - a[_T]) / (b[_T] - a[_T])
-        return a + u * (b - a)
-
-    def spacing(self, t_s: float) -> float:
-        """Time between the rows around ``t_s`` (long across lost IMU samples); 0 if outside."""
-        rows = self._ordered()
-        i = int(np.searchsorted(rows[:, _T], t_s))
-        if i == 0 or i >= len(rows):
-            return 0.0
-        return float(rows[i, _T] - rows[i - 1, _T])
-
-    @property
-    def full(self) -> bool:
-        """Rows are being overwritten: the history spans its whole length."""
-        return self._count == len(self._buf)
-
-    def oldest_s(self) -> float:
-        """Time of the oldest row kept."""
-        return float(self._ordered()[0, _T])
-
-    def mean_rate(self, t_s: float, half_width_s: float) -> Array:
-        """Mean body rate (3,) of the rows within ``half_width_s`` of ``t_s`` (centred, no lag)."""
-        rows = self._ordered()
-        near = np.abs(rows[:, _T] - t_s) <= half_width_s
-        return np.asarray(rows[near, _W].mean(axis=0)) if near.any() else rows[-1, _W].copy()
-
-    def shift(self, dp: Array, dv: Array, rot: Array, t_e: float = math.inf) -> None:
-        """Apply a state correction of time ``t_e`` to every row: p += dp (+ dv (t - t_e)
-        after t_e), v += dv, C <- rot C."""
-        rows = self._buf[: self._count]
-        rows[:, _P] += dp + np.maximum(rows[:, _T] - t_e, 0.0)[:, None] * dv
-        rows[:, _V] += dv
-        rows[:, _C] = (rot @ rows[:, _C].reshape(-1, 3, 3)).reshape(-1, 9)
 
 
 class EkfEngine:
@@ -200,6 +135,7 @@ class EkfEngine:
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
         self._l_imu_b_f = tuple(float(x) for x in self._l_imu_b)
         self._l_imu_ant_b = self._l_ant_b - self._l_imu_b  # antenna relative to the IMU
+        self._l_imu_ant_m = float(np.linalg.norm(self._l_imu_ant_b))  # its length
         self._tuning: EkfTuning | None = None
         # lost IMU samples were bridged by one held sample: the INS position and velocity then
         # carry the unknown motion of the gap (0.3 m/s in a 0.5 s gap while braking), not
@@ -212,7 +148,7 @@ class EkfEngine:
         self._fix_err_ned_m = np.zeros(3)
         self._fix_var_white_m2 = np.zeros(3)
         self._fix_var_wander_m2 = np.zeros(3)
-        self._hist: _History | None = None
+        self._hist: InsHistory | None = None
         self._held = HeldEpochs()  # epochs ahead of the IMU
         self._imu = ImuHealth(self.cfg.imu_fault_s)  # timing, alarm, saturation, FAULT
         self._frame: LocalFrame | None = None  # local NED around the first position used
@@ -255,7 +191,7 @@ class EkfEngine:
         if self._tuning is None:
             self._tuning = EkfTuning.from_config(self.cfg, dt)
             self._q_c = process_noise_psd(self._tuning)
-            self._hist = _History(max(2, math.ceil(self.cfg.history_s / dt)))
+            self._hist = InsHistory(max(2, math.ceil(self.cfg.history_s / dt)))
         self._t_s = t
         if self._p is None:
             self._align_tilt(t, w, f)
@@ -440,12 +376,12 @@ class EkfEngine:
         ):
             self._reset_from_fix(fix, t_e, row)
             return
-        c_e = row[_C].reshape(3, 3)
+        c_e = row[ROW_C].reshape(3, 3)
         measurements: list[Measurement] = []
         if sig_pos is not None and p_ant is not None:
             measurements.append(
                 fuse_position(
-                    row[_P],
+                    row[ROW_P],
                     c_e,
                     self._l_imu_ant_b,
                     p_ant,
@@ -458,7 +394,7 @@ class EkfEngine:
             w_e, sig_lever = self._lever_rate(t_e)
             measurements.append(
                 fuse_velocity(
-                    row[_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
+                    row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
                 )
             )
         if fix.heading_rad is not None:
@@ -501,7 +437,7 @@ class EkfEngine:
         assert self._hist is not None and self._tuning is not None
         h = LEVER_RATE_HALF_WIDTH_S
         sig_w = math.sqrt(self._tuning.q_gyro_rad2_per_s / (2.0 * h))
-        return self._hist.mean_rate(t_e, h), sig_w * float(np.linalg.norm(self._l_imu_ant_b))
+        return self._hist.mean_rate(t_e, h), sig_w * self._l_imu_ant_m
 
     def _fuse_nonholonomic(self, t: float) -> None:
         """Zero lateral/vertical velocity of the reference point, at the current state."""
@@ -561,7 +497,7 @@ class EkfEngine:
             return
         ins, hist, tun = self._ins, self._hist, self._tuning
         assert ins is not None and hist is not None and tun is not None
-        c_e = row[_C].reshape(3, 3)
+        c_e = row[ROW_C].reshape(3, 3)
         rot = exp_so3((0.0, 0.0, target - math.atan2(c_e[1, 0], c_e[0, 0])))
         ins.rotate(rot)
         hist.shift(np.zeros(3), np.zeros(3), rot)
@@ -671,7 +607,7 @@ class EkfEngine:
         roll error reported as 0.12 deg)."""
         ins, hist, p = self._ins, self._hist, self._p
         assert ins is not None and hist is not None and p is not None and self._t_s is not None
-        c_e = row[_C].reshape(3, 3)
+        c_e = row[ROW_C].reshape(3, 3)
         l_b = self._l_imu_ant_b
         c_l = c_e @ l_b
         p_imu = self._antenna_ned(fix) - c_l
@@ -816,15 +752,14 @@ class EkfEngine:
         coasting_s = self._coasting_s()
         send, within = self._dead_reckoning_output(coasting_s)
         mode = self._mode(coasting_s, within)
-        nav = self.reference_state()
+        nav = self.reference_state() if send else None  # (None until P, i.e. a frame, exists)
         lat = lon = alt = None
         vel = None
-        if nav is not None and self._frame is not None and send:
-            lat, lon, alt = self._frame.to_lla(*(float(x) for x in nav[0]))
-            vel = (float(nav[1][0]), float(nav[1][1]), float(nav[1][2]))
-        sig = self.bias_sigma()
+        if nav is not None and self._frame is not None:
+            lat, lon, alt = self._frame.to_lla(*nav[0].tolist())
+            vx, vy, vz = nav[1].tolist()
+            vel = (vx, vy, vz)
         p = self._p
-        cfg = self.cfg
         return Solution(
             **common,
             is_ekf=True,
@@ -847,13 +782,23 @@ class EkfEngine:
             reversing=self._reversing,
             stationary=self._stationary,
             coasting=coasting_s > 0.0,
-            convergence=Convergence(
-                gyro_xy=sig is not None
-                and max(sig[0][:2]) < cfg.gyro_xy_converged_dps * DEG_TO_RAD,
-                gyro_z=sig is not None and sig[0][2] < cfg.gyro_z_converged_dps * DEG_TO_RAD,
-                accel_xy=sig is not None and max(sig[1][:2]) < cfg.accel_xy_converged_mps2,
-                learning_frozen=p is None or coasting_s > 0.0,
-            ),
+            convergence=self._convergence(coasting_s),
+        )
+
+    def _convergence(self, coasting_s: float) -> Convergence:
+        """Bias learning flags from the 1-sigmas in P; learning is frozen without P and while
+        coasting."""
+        p, cfg = self._p, self.cfg
+        if p is None:
+            return Convergence(learning_frozen=True)
+        sig_ax, sig_ay, _, sig_gx, sig_gy, sig_gz = np.sqrt(
+            p.diagonal()[BA.start : BG.stop]
+        ).tolist()
+        return Convergence(
+            gyro_xy=max(sig_gx, sig_gy) < cfg.gyro_xy_converged_dps * DEG_TO_RAD,
+            gyro_z=sig_gz < cfg.gyro_z_converged_dps * DEG_TO_RAD,
+            accel_xy=max(sig_ax, sig_ay) < cfg.accel_xy_converged_mps2,
+            learning_frozen=coasting_s > 0.0,
         )
 
     def _coasting_s(self) -> float:

@@ -156,9 +156,16 @@ def correct(p: Array, dx: Array, m: Measurement, gate_sigma: float) -> Correctio
     k = ph @ s_inv
     dx += k @ z
     ikh = _I_N - k @ m.h
-    p[:] = ikh @ p @ ikh.T + k @ m.r @ k.T
-    p[:] = 0.5 * (p + p.T)
+    p_new = ikh @ p @ ikh.T
+    p_new += k @ m.r @ k.T
+    _set_symmetrised(p, p_new)
     return Correction(m.name, nis, True)
+
+
+def _set_symmetrised(p: Array, p_new: Array) -> None:
+    """p <- (p_new + p_new^T) / 2 in place: rounding leaves the products slightly asymmetric."""
+    np.add(p_new, p_new.T, out=p)
+    p *= 0.5
 
 
 # --- strapdown mechanisation ---------------------------------------------------------------
@@ -211,24 +218,27 @@ class Strapdown:
         dvy = (fy + 0.5 * (az * fx - ax * fz)) * dt
         dvz = (fz + 0.5 * (ax * fy - ay * fx)) * dt
         c = self.c_bn9
-        dvn = c[0] * dvx + c[1] * dvy + c[2] * dvz
-        dve = c[3] * dvx + c[4] * dvy + c[5] * dvz
-        dvd = c[6] * dvx + c[7] * dvy + c[8] * dvz
+        c00, c01, c02, c10, c11, c12, c20, c21, c22 = c
+        dvn = c00 * dvx + c01 * dvy + c02 * dvz
+        dve = c10 * dvx + c11 * dvy + c12 * dvz
+        dvd = c20 * dvx + c21 * dvy + c22 * dvz
         v, p = self.v_ned_mps, self.p_ned_m
         vn0, ve0, vd0 = v
-        v[0] = vn0 + dvn
-        v[1] = ve0 + dve
-        v[2] = vd0 + dvd + GRAVITY_MPS2 * dt
-        p[0] += 0.5 * (vn0 + v[0]) * dt
-        p[1] += 0.5 * (ve0 + v[1]) * dt
-        p[2] += 0.5 * (vd0 + v[2]) * dt
+        vn, ve, vd = vn0 + dvn, ve0 + dve, vd0 + dvd + GRAVITY_MPS2 * dt
+        self.v_ned_mps = [vn, ve, vd]
+        self.p_ned_m = [
+            p[0] + 0.5 * (vn0 + vn) * dt,
+            p[1] + 0.5 * (ve0 + ve) * dt,
+            p[2] + 0.5 * (vd0 + vd) * dt,
+        ]
         s = self.sum_dv_ned_mps
-        s[0] += dvn
-        s[1] += dve
-        s[2] += dvd
+        self.sum_dv_ned_mps = [s[0] + dvn, s[1] + dve, s[2] + dvd]
         sc = self.sum_c_dt
-        for i in range(9):
-            sc[i] += c[i] * dt
+        self.sum_c_dt = [
+            sc[0] + c00 * dt, sc[1] + c01 * dt, sc[2] + c02 * dt,
+            sc[3] + c10 * dt, sc[4] + c11 * dt, sc[5] + c12 * dt,
+            sc[6] + c20 * dt, sc[7] + c21 * dt, sc[8] + c22 * dt,
+        ]  # fmt: skip
         self.sum_dt_s += dt
         c = dcm_mul(c, exp_so3_2nd(ax, ay, az))
         self._n += 1
@@ -251,11 +261,13 @@ class Strapdown:
         C <- exp([phi]x) C. The error state is then zero by definition (the caller drops dx);
         the reset Jacobian I - [phi/2]x of the covariance is taken as I (phi ~ mrad).
         """
+        d = dx.tolist()
+        dp, dv, dba, dbg = d[POS], d[VEL], d[BA], d[BG]
         for i in range(3):
-            self.p_ned_m[i] += float(dx[POS][i])
-            self.v_ned_mps[i] += float(dx[VEL][i])
-            self.bias_a_mps2[i] += float(dx[BA][i])
-            self.bias_g_rps[i] += float(dx[BG][i])
+            self.p_ned_m[i] += dp[i]
+            self.v_ned_mps[i] += dv[i]
+            self.bias_a_mps2[i] += dba[i]
+            self.bias_g_rps[i] += dbg[i]
         rot = exp_so3(dx[ATT])
         self.c_bn9 = to_mat9(rot @ self.c_bn)
         return rot
@@ -308,8 +320,9 @@ def process_noise_psd(tuning: EkfTuning) -> Array:
 def predict(p: Array, phi: Array, q_c: Array, t_s: float) -> None:
     """P <- Phi P Phi^T + Q_d in place, Q_d = (Phi Q_c Phi^T + Q_c) T / 2 (trapezoid)."""
     q_d = 0.5 * t_s * ((phi * q_c) @ phi.T + np.diag(q_c))
-    p[:] = phi @ p @ phi.T + q_d
-    p[:] = 0.5 * (p + p.T)
+    p_new = phi @ p @ phi.T
+    p_new += q_d
+    _set_symmetrised(p, p_new)
 
 
 # --- measurement models --------------------------------------------------------------------
