@@ -21,15 +21,15 @@ Mat9 = tuple[float, float, float, float, float, float, float, float, float]
 
 def skew(v: npt.ArrayLike) -> Array:
     """[v]x, shape (3, 3), such that skew(a) @ b == cross(a, b)."""
-    x, y, z = np.asarray(v, dtype=float)
+    x, y, z = np.asarray(v, dtype=float).tolist()
     return np.array([[0.0, -z, y], [z, 0.0, -x], [-y, x, 0.0]])
 
 
 def cross3(a: npt.ArrayLike, b: npt.ArrayLike) -> Array:
     """a x b of two 3-vectors: np.cross's own formula and operation order (the same bits),
     without its axis handling, which costs 15 us a call."""
-    a0, a1, a2 = (float(x) for x in np.ravel(a))
-    b0, b1, b2 = (float(x) for x in np.ravel(b))
+    a0, a1, a2 = np.asarray(a, dtype=float).ravel().tolist()
+    b0, b1, b2 = np.asarray(b, dtype=float).ravel().tolist()
     return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
 
 
