@@ -2,7 +2,8 @@
 
 Layers, each usable alone:
 
-- :class:`ImuDecoder`, pure (no I/O): fed ``can.Message`` objects in arrival order, it decodes
+- :class:`ImuDecoder`, pure (no I/O): fed frames in arrival order (``can.Message`` objects, or
+  a candump line's fields, which replay reads without making a message), it decodes
   IMU_GYRO / IMU_ACCEL / IMU_AUX through the DBC (the two per-sample frames with unpackers
   compiled from it, :meth:`dbc.fast_decode.LittleEndianDecoder.compile`: a few us a sample in
   all), pairs gyro and accel by SEQ, converts to SI in the body frame, rebuilds sample times
@@ -75,7 +76,7 @@ from dbc.fast_decode import AllOf, AnyOf, LittleEndianDecoder, Lookup, Output, R
 from drivers.errors import ErrorPolicy
 from drivers.frame_reader import FrameReader
 from drivers.log_limit import BadInput
-from drivers.logs.candump import CandumpReader, read_candump
+from drivers.logs.candump import CandumpReader, FrameFields, read_candump
 from drivers.samples import ImuAux, ImuCounters, ImuSample, Vec3
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 
@@ -367,47 +368,80 @@ class ImuDecoder:
         self._gap_n = 0  # last index before the first such gap
 
     def feed(self, msg: can.Message) -> list[ImuSample | ImuAux]:
-        """Decode one frame; returns what it completes (usually nothing or one item)."""
-        entry = self._frames.get(msg.arbitration_id & PGN_SA_MASK)
-        if entry is None or msg.is_error_frame:
+        """Decode one frame; returns what it completes (nothing or one item)."""
+        if msg.is_error_frame:
             self.counters.ignored += 1
             return []
+        item = self.feed_frame(
+            float(msg.timestamp),
+            msg.arbitration_id,
+            msg.data,
+            msg.is_extended_id,
+            msg.is_remote_frame,
+        )
+        return [] if item is None else [item]
+
+    def feed_record(self, record: FrameFields | can.Message) -> ImuSample | ImuAux | None:
+        """Decode one frame, a message or a candump line's fields
+        (:meth:`drivers.logs.candump.CandumpReader.records`); returns what it completes."""
+        if isinstance(record, tuple):
+            t, can_id, data, is_extended, _, _ = record
+            return self.feed_frame(t, can_id, data, is_extended)
+        items = self.feed(record)
+        return items[0] if items else None
+
+    def feed_frame(
+        self,
+        t: float,
+        arbitration_id: int,
+        data: bytes | bytearray,
+        is_extended_id: bool = True,
+        is_remote_frame: bool = False,
+    ) -> ImuSample | ImuAux | None:
+        """:meth:`feed_record` of a frame that is no error frame, given by its fields (arrival
+        time ``t`` in seconds): replay makes no :class:`can.Message` and no list per frame."""
+        entry = self._frames.get(arbitration_id & PGN_SA_MASK)
+        if entry is None:
+            self.counters.ignored += 1
+            return None
         frame, length, frame_id, unpack, expected_reserved, key = entry
         frames = self.counters.frames = self.counters.frames + 1
-        t = float(msg.timestamp)
         pending = self._pending
         if pending and frames >= self._stale_from:
             self._evict_stale_halves(t)
-        data = msg.data
-        if not msg.is_extended_id or msg.is_remote_frame or len(data) != length:
+        if not is_extended_id or is_remote_frame or len(data) != length:
             what = (
-                f"{frame.value} frame id 0x{msg.arbitration_id:X} "
-                f"(extended {msg.is_extended_id}, remote {msg.is_remote_frame}, "
+                f"{frame.value} frame id 0x{arbitration_id:X} "
+                f"(extended {is_extended_id}, remote {is_remote_frame}, "
                 f"{len(data)} bytes)"
             )
-            return self._malformed(t, what, f"an extended data frame of {length} bytes")
+            self._malformed(t, what, f"an extended data frame of {length} bytes")
+            return None
         if unpack is None:
-            return [self._aux(t, self._aux_decoder.decode(bytes(data)))]
+            return self._aux(t, self._aux_decoder.decode(bytes(data)))
         fields = unpack(data)
         if fields[_RESERVED] != expected_reserved:
-            return self._malformed(
+            self._malformed(
                 t,
                 f"{frame.value} id 0x{frame_id:X} reserved bits 0x{fields[_RESERVED]:X}",
                 f"0x{expected_reserved:X} (reserved bits sent as 1)",
             )
+            return None
         seq = fields[_SEQ]
         key += seq
         partner = pending.pop(key ^ _ACCEL_KEY, None)
         if partner is None:
-            if pending.pop(key, None) is not None:
+            if key in pending:
+                del pending[key]
                 self._unpaired(t, frame, seq, "a second one of the same SEQ")
             if not pending:  # the oldest now; a later half leaves the bound valid
                 self._stale_from = frames + _PAIR_MIN_FRAMES + 1
             pending[key] = (t, frames, fields)
-            return []
+            return None
+        t_partner, _, partner_fields = partner
         if key & _ACCEL_KEY:
-            return self._sample(seq, partner, (t, frames, fields))
-        return self._sample(seq, (t, frames, fields), partner)
+            return self._sample(seq, t_partner, partner_fields, t, fields)
+        return self._sample(seq, t, fields, t_partner, partner_fields)
 
     def finish(self) -> None:
         """End of input: any half still waiting for its partner is unpaired."""
@@ -418,9 +452,12 @@ class ImuDecoder:
         """Current nominal sample period (0 before the first sample)."""
         return self._dt
 
-    def _sample(self, seq: int, gyro: _Half, accel: _Half) -> list[ImuSample | ImuAux]:
-        t_gyro, _, g = gyro
-        t_accel, _, f = accel
+    def _sample(
+        self, seq: int, t_gyro: float, g: tuple[Any, ...], t_accel: float, f: tuple[Any, ...]
+    ) -> ImuSample | None:
+        """The sample of IMU_GYRO fields ``g`` and IMU_ACCEL fields ``f`` of SEQ ``seq``,
+        arrived at ``t_gyro`` and ``t_accel``; None if it came late (a duplicate, or out of
+        order)."""
         dec = g[_DEC]
         a = t_accel if t_accel < t_gyro else t_gyro  # min(t_gyro, t_accel), which is slower
         c = self.counters
@@ -438,7 +475,7 @@ class ImuDecoder:
         else:
             step = self._unwrap(seq, a)
             if step is None:
-                return []
+                return None
             n = self._track(seq, a, step)
         self._n_last, self._seq_last, self._a_last = n, self._seq_taken, a
         if len(self._missing) > 512:
@@ -475,7 +512,7 @@ class ImuDecoder:
             w_ib_b, f_ib_b = self.c_b_imu @ w_ib_b, self.c_b_imu @ f_ib_b
         dt = self._dt
         t = self._offset + n * dt - self._latency
-        return [_new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated)]
+        return _new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated)
 
     def _unwrap(self, seq: int, a: float) -> int | None:
         """The index of sample ``seq`` arriving at ``a`` (None if late); counts SEQ gaps lost."""
@@ -693,11 +730,10 @@ class ImuDecoder:
             f"one {other.value} (id 0x{self.config.ids.by_frame()[other]:X}) per SEQ",
         )
 
-    def _malformed(self, t: float, what: str, expected: str) -> list[ImuSample | ImuAux]:
+    def _malformed(self, t: float, what: str, expected: str) -> None:
         self.counters.malformed += 1
         where = f"IMU CAN frame at t={t:.6f}"
         self._bad.bad(t, WarningKind.MALFORMED, where, f"malformed {what} dropped", expected)
-        return []
 
     def _warn(self, kind: WarningKind, t: float, text: str) -> None:
         """Log at most one warning of ``kind`` per ``warn_interval_s`` of frame time."""
@@ -725,6 +761,9 @@ def read_log(
 ) -> Iterator[ImuSample | ImuAux]:
     """Yield ImuSample/ImuAux from a candump ``-L`` log (malformed lines skipped and counted)."""
     decoder = decoder or ImuDecoder()
-    for msg in source if isinstance(source, CandumpReader) else read_candump(source):
-        yield from decoder.feed(msg)
+    reader = source if isinstance(source, CandumpReader) else read_candump(source)
+    for record in reader.records():
+        item = decoder.feed_record(record)
+        if item is not None:
+            yield item
     decoder.finish()

@@ -9,26 +9,35 @@ it and logging it, at a limited rate, with file, line number, text and what was 
 instead of ending the whole read. Replay and the IMU driver's log source both use this parser.
 
 Speed (issue 14): both directions have a fast path for the common shape, a data frame of at most
-8 bytes with a 3- or 8-digit id, e.g. the line above. :func:`_parse_fast` accepts only lines the
-careful parser :func:`_parse_careful` accepts, and gives the identical message; it returns
-``None`` for anything else (remote, error and CAN FD frames, numeric channels, every malformed
-line), which the careful parser then reads, rejects or explains. The file location of a line
-("name:number") is only built for a line the fast path leaves. Likewise the writer formats the
-common frame inline, with the expressions of :func:`format_candump_line`, and leaves the rest
-to it. tests/test_canlog.py checks both against the careful paths on generated lines and frames.
+8 bytes with a 3- or 8-digit id, e.g. the line above. :func:`frame_fields` accepts only lines
+the careful parser :func:`_parse_careful` accepts, and gives the fields of the identical
+message (:func:`message_of` makes it); it returns ``None`` for anything else (remote, error and
+CAN FD frames, numeric channels, every malformed line), which the careful parser then reads,
+rejects or explains. The reader goes further: it reads the text in blocks and the lines of a
+block's most common layout (all alike but for their digits, as a bridge's log is) at once with
+numpy, to the same fields (:func:`_alike_lines`), leaving every other line to the two parsers;
+replay takes those fields (:meth:`CandumpReader.records`) and makes no message of the IMU's
+frames. The file location of a line ("name:number") is only built for a line the fast paths
+leave. Likewise the writer formats the common frame inline, with the expressions of
+:func:`format_candump_line`, and leaves the rest to it. tests/test_canlog.py and
+tests/test_candump_blocks.py check all of them against the careful paths on generated lines.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+import re
 from collections.abc import Iterable, Iterator
 from contextlib import nullcontext
 from dataclasses import dataclass
+from itertools import chain, islice, repeat
 from pathlib import Path
 from typing import TextIO
 
 import can
+import numpy as np
+import numpy.typing as npt
 
 from drivers.errors import InputError
 from drivers.logs.closing import Closing
@@ -53,7 +62,32 @@ _INF = math.inf
 _NO_STAMP = object()
 _new_object = object.__new__
 _Message = can.Message
-_fromhex = bytearray.fromhex
+_fromhex = bytes.fromhex
+
+#: A common line's data frame as :func:`frame_fields` reads it: (timestamp, arbitration id,
+#: data, whether the id is extended, channel, whether received (no T flag)).
+FrameFields = tuple[float, int, bytes, bool, str, bool]
+
+# The block path's constants (:func:`_alike_lines`).
+_BLOCK_CHARS = 1 << 20
+_LAYOUT = re.compile(
+    r"\(([0-9]{1,17})\.([0-9]{1,17})\) ([A-Za-z0-9_.\-]+) [0-9A-Fa-f]{8}#((?:[0-9A-Fa-f]{2}){1,8})"
+)
+_MAX_DIGITS = 18  # of a timestamp whose digits, read as one integer, fit an int64
+_EXACT_INT = 2**53  # up to here every integer is a float64
+_NEWLINE = ord("\n")
+_ZERO, _NINE = ord("0"), ord("9")
+
+
+def _hex_values() -> npt.NDArray[np.uint8]:
+    """The value of each byte as a hex digit, as ``int(c, 16)`` reads it; 16 for any other."""
+    table = np.full(256, 16, dtype=np.uint8)
+    for c in "0123456789ABCDEFabcdef":
+        table[ord(c)] = int(c, 16)
+    return table
+
+
+_HEX = _hex_values()
 
 
 def format_candump_line(msg: can.Message, channel: str | int | None = None) -> str:
@@ -168,7 +202,14 @@ def parse_candump_line(line: str, where: str = "<line>") -> can.Message | None:
 
 
 def _parse_fast(line: str) -> can.Message | None:
-    """The common well-formed line as :func:`_parse_careful` reads it, else ``None``.
+    """The common well-formed line as :func:`_parse_careful` reads it, else ``None``."""
+    fields = frame_fields(line)
+    return None if fields is None else message_of(fields)
+
+
+def frame_fields(line: str) -> FrameFields | None:
+    """The fields of a common well-formed line, as :func:`_parse_careful` reads them, else
+    ``None``.
 
     Accepts three fields (or four, the last R, r, T or t), the same the careful parser splits:
     a finite timestamp >= 0 in parentheses, a channel that is not a number, and a data frame of
@@ -207,10 +248,19 @@ def _parse_fast(line: str) -> can.Message | None:
         or not 0.0 <= timestamp < _INF
     ):
         return None
+    return timestamp, can_id, payload, id_len == 8, channel, is_rx
+
+
+def message_of(record: FrameFields | can.Message) -> can.Message:
+    """The message of a :meth:`CandumpReader.records` record: for :data:`FrameFields`, the
+    one :func:`_parse_careful` makes of their line."""
+    if not isinstance(record, tuple):
+        return record
+    timestamp, can_id, payload, is_extended, channel, is_rx = record
     msg = _new_object(_Message)  # the fields can.Message(...) sets, without its keywords
     msg.timestamp = timestamp
     msg.arbitration_id = can_id
-    msg.is_extended_id = id_len == 8
+    msg.is_extended_id = is_extended
     msg.is_remote_frame = False
     msg.is_error_frame = False
     msg.channel = channel
@@ -218,9 +268,147 @@ def _parse_fast(line: str) -> can.Message | None:
     msg.is_rx = is_rx
     msg.bitrate_switch = False
     msg.error_state_indicator = False
-    msg.data = payload
+    msg.data = bytearray(payload)
     msg.dlc = len(payload)
     return msg
+
+
+@dataclass(frozen=True)
+class _Layout:
+    """Where the fields lie in lines of the shape ``(W.F) CHANNEL IIIIIIII#DD..`` that differ
+    only in their digits: W and F decimal digits, an extended id, ``size`` data bytes."""
+
+    whole: int  # digits before the point
+    frac: int  # digits after it
+    channel: str
+    size: int
+
+    @classmethod
+    def of(cls, line: str) -> _Layout | None:
+        """The layout of ``line``, if it has one: only ASCII digits in the timestamp (at most
+        :data:`_MAX_DIGITS`), a channel name of letters, digits and ``_.-``, not a number."""
+        match = _LAYOUT.fullmatch(line)
+        if match is None:
+            return None
+        whole, frac, channel, data = match.groups()
+        if len(whole) + len(frac) > _MAX_DIGITS or channel.isdigit():
+            return None
+        return cls(len(whole), len(frac), channel, len(data) // 2)
+
+    @property
+    def id_at(self) -> int:
+        """Column of the id's first digit."""
+        return self.whole + self.frac + len(self.channel) + 5
+
+    def constants(self) -> tuple[list[int], bytes]:
+        """The columns every line of the layout has the same character in, and those."""
+        text = f"(.) {self.channel} #"
+        at = self.whole + 1
+        cols = [0, at, at + self.frac + 1]
+        cols += range(cols[-1] + 1, self.id_at)
+        cols.append(self.id_at + 8)
+        return cols, text.encode("ascii")
+
+
+def _blocks(stream: TextIO) -> Iterator[str]:
+    """The text of ``stream`` in blocks of whole lines (about :data:`_BLOCK_CHARS`), each
+    without its last newline (a block of n lines holds n - 1 newlines). The lines are those
+    iterating the stream gives: it splits at its newlines, translated as configured."""
+    carry = ""
+    while chunk := stream.read(_BLOCK_CHARS):
+        text = carry + chunk
+        end = text.rfind("\n")
+        if end < 0:
+            carry = text
+            continue
+        carry = text[end + 1 :]
+        yield text[:end]
+    if carry:
+        yield carry
+
+
+def _alike_lines(block: str) -> tuple[int, list[tuple[int, str]], Iterator[FrameFields]]:
+    """The lines of ``block``: how many, those (index, text) not of its most common layout,
+    and the fields of those that are, in their order, as :func:`frame_fields` reads them.
+
+    The lines of that layout are read at once with numpy, the columns of the digits and of
+    the constant characters of every line checked together; a line with any other character
+    (a non-ASCII one is '?' here) or with a larger value is left, like any other line, to
+    the caller. Values are those of ``frame_fields``: the id and data from their hex digits;
+    the timestamp, ``float`` of decimal digits W.F, is the integer N of the digits WF over
+    10^len(F), both exact in float64 (N <= 2^53), so the division's correctly rounded result
+    is the correctly rounded value of the decimal, which ``float`` gives.
+    """
+    raw = np.frombuffer((block + "\n").encode("ascii", "replace"), np.uint8)
+    ends = np.flatnonzero(raw == _NEWLINE)
+    count = len(ends)
+    starts = np.concatenate(([0], ends[:-1] + 1))
+    lengths = ends - starts
+    common = int(np.argmax(np.bincount(lengths)))
+    first = int(np.argmax(lengths == common))
+    layout = _Layout.of(block[starts[first] : starts[first] + common])
+    if layout is None:
+        return count, _lines_at(block, starts, lengths, np.arange(count)), iter(())
+    if (lengths == common).all():
+        rows = raw.reshape(count, common + 1)[:, :common]
+        chosen = np.arange(count)
+    else:
+        chosen = np.flatnonzero(lengths == common)
+        rows = raw[starts[chosen, None] + np.arange(common)]
+    ok, fields = _read_rows(rows, layout)
+    left = np.ones(count, dtype=bool)
+    left[chosen[ok]] = False
+    return count, _lines_at(block, starts, lengths, np.flatnonzero(left)), fields
+
+
+def _lines_at(
+    block: str,
+    starts: npt.NDArray[np.int64],
+    lengths: npt.NDArray[np.int64],
+    indices: npt.NDArray[np.int64],
+) -> list[tuple[int, str]]:
+    """(index, text) of the lines of ``block`` at ``indices``."""
+    return [
+        (i, block[start : start + n])
+        for i, start, n in zip(
+            indices.tolist(), starts[indices].tolist(), lengths[indices].tolist(), strict=True
+        )
+    ]
+
+
+def _read_rows(
+    rows: npt.NDArray[np.uint8], layout: _Layout
+) -> tuple[npt.NDArray[np.bool_], Iterator[FrameFields]]:
+    """Which ``rows`` (lines of ``layout``'s length, a column a character) are of
+    ``layout``, and the fields of those (:func:`_alike_lines`)."""
+    cols, chars = layout.constants()
+    ok = (rows[:, cols] == np.frombuffer(chars, np.uint8)).all(axis=1)
+    point = layout.whole + 1
+    digits = np.concatenate(
+        (rows[:, 1:point], rows[:, point + 1 : point + 1 + layout.frac]), axis=1
+    ).astype(np.int64)
+    ok &= ((digits >= _ZERO) & (digits <= _NINE)).all(axis=1)
+    n = (digits - _ZERO) @ (10 ** np.arange(digits.shape[1] - 1, -1, -1, dtype=np.int64))
+    ok &= n <= _EXACT_INT
+    nibbles = _HEX[rows[:, layout.id_at :]]
+    nibbles = np.delete(nibbles, 8, axis=1)  # the '#'
+    ok &= (nibbles < 16).all(axis=1)
+    can_id = nibbles[:, :8].astype(np.int64) @ (16 ** np.arange(7, -1, -1, dtype=np.int64))
+    ok &= can_id <= 0x1FFFFFFF
+    data = nibbles[ok, 8::2] << 4 | nibbles[ok, 9::2]
+    size = layout.size
+    blob = data.tobytes()
+    payloads = [blob[i : i + size] for i in range(0, len(blob), size)]
+    stamps = n[ok].astype(np.float64) / float(10**layout.frac)  # both exact
+    fields = zip(
+        stamps.tolist(),
+        can_id[ok].tolist(),
+        payloads,
+        repeat(True),
+        repeat(layout.channel),
+        repeat(True),
+    )
+    return ok, fields
 
 
 def _parse_careful(line: str, where: str) -> can.Message | None:
@@ -312,35 +500,65 @@ class CandumpReader:
         return str(getattr(self.source, "name", "<stream>"))
 
     def __iter__(self) -> Iterator[can.Message]:
+        return map(message_of, self.records())
+
+    def records(self) -> Iterator[FrameFields | can.Message]:
+        """Each frame: the :data:`FrameFields` of a common line (:func:`frame_fields`), or the
+        message the careful parser makes of any other; a malformed line is counted, logged
+        and skipped. Replay takes these, and makes no message of most frames.
+
+        The text is read in blocks: the lines of a block's most common layout at once
+        (:func:`_alike_lines`), the others one by one, all in their order. ``frames`` counts
+        a run of alike lines as the run starts.
+        """
+        return chain.from_iterable(self._runs())
+
+    def _runs(self) -> Iterator[Iterable[FrameFields | can.Message]]:
+        """:meth:`records` in runs, in order: alike lines of a block together, any other
+        line alone (a 1-tuple of its record; nothing for a blank or malformed line)."""
         source = self.source
         with (
             Path(source).open(encoding="ascii", errors="replace")
             if isinstance(source, str | Path)
             else nullcontext(source)  # a stream is the caller's to close
         ) as stream:
-            name = self.name
-            fast = _parse_fast
-            for number, line in enumerate(stream, start=1):
-                msg = fast(line)
-                if msg is None:  # not the common shape: the careful parser, with the place
-                    try:
-                        msg = _parse_careful(line, f"{name}:{number}")
-                    except InputError as exc:
-                        self.bad_lines += 1
-                        if self.bad_lines <= MAX_LOGGED_BAD_LINES:
-                            log.warning("skipped malformed candump line: %s", exc)
-                        continue
-                    if msg is None:
-                        continue
-                self.frames += 1
-                yield msg
+            number = 1  # of the block's first line
+            for block in _blocks(stream):
+                count, others, alike = _alike_lines(block)
+                done = 0  # lines of the block yielded or skipped
+                for index, line in others:
+                    if index > done:
+                        self.frames += index - done
+                        yield islice(alike, index - done)
+                    record = self._read_line(line, number + index)
+                    if record is not None:
+                        self.frames += 1
+                        yield (record,)
+                    done = index + 1
+                self.frames += count - done
+                yield alike
+                number += count
             if self.bad_lines > MAX_LOGGED_BAD_LINES:
                 log.warning(
                     "%s: %d malformed lines skipped in all (%d not shown)",
-                    name,
+                    self.name,
                     self.bad_lines,
                     self.bad_lines - MAX_LOGGED_BAD_LINES,
                 )
+
+    def _read_line(self, line: str, number: int) -> FrameFields | can.Message | None:
+        """One line as :meth:`records` gives it; None for a blank or (counted, logged at a
+        limited rate) malformed line."""
+        fields = frame_fields(line)
+        if fields is not None:
+            return fields
+        try:
+            return _parse_careful(line, f"{self.name}:{number}")
+        except InputError as exc:
+            self.bad_lines += 1
+            if self.bad_lines <= MAX_LOGGED_BAD_LINES:
+                log.warning("skipped malformed candump line: %s", exc)
+            return None
 
 
 def read_candump(source: str | Path | TextIO) -> CandumpReader:

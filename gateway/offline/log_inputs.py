@@ -23,7 +23,7 @@ import can
 
 from drivers.errors import InputError
 from drivers.imu_can import ImuCanConfig, ImuDecoder
-from drivers.logs.candump import read_candump
+from drivers.logs.candump import message_of, read_candump
 from drivers.logs.nmea_log import NmeaLogReader, read_nmea_log
 from drivers.nmea import NmeaDecoder, read_fixes_from_log
 from drivers.samples import GnssFix, ImuAux, ImuSample
@@ -77,18 +77,24 @@ class LogInputs:
     def _can_inputs(self) -> Iterator[ImuSample | ImuAux | BusFrame]:
         """IMU samples from the bridge's frames; the other nodes' frames as they are."""
         decoder = self.imu_decoder
-        feed = decoder.feed
+        feed_record = decoder.feed_record
         bridge = decoder.frame_keys
         key_mask = decoder.key_mask
-        for msg in self.can_reader:
-            if (
-                msg.is_extended_id
-                and msg.arbitration_id & key_mask not in bridge
-                and self._from_another_node(msg)
-            ):
-                yield BusFrame(float(msg.timestamp), msg)
-            else:
-                yield from feed(msg)  # the bridge's; and the others' the decoder counts
+        for record in self.can_reader.records():
+            # a common line of the bridge's is decoded as read: no can.Message is made
+            if not (isinstance(record, tuple) and record[1] & key_mask in bridge):
+                msg = message_of(record)
+                if (
+                    msg.is_extended_id
+                    and msg.arbitration_id & key_mask not in bridge
+                    and self._from_another_node(msg)
+                ):
+                    yield BusFrame(float(msg.timestamp), msg)
+                    continue
+                record = msg
+            item = feed_record(record)  # the bridge's; and the others' the decoder counts
+            if item is not None:
+                yield item
         decoder.finish()
 
     def _from_another_node(self, msg: can.Message) -> bool:
