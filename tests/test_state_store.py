@@ -70,7 +70,7 @@ STATE = StoredState(
     bands=(entry(24.0, T0 - 3600.0), entry(34.0)),
     written_s=T0,
     last=LastPose(T0, 52.2, 10.5, 80.25, 271.5),
-    mounting=Mounting((0.5, -1.25, 90.0), (0.05, 0.05, 0.2)),
+    mounting=Mounting((0.5, -1.25, 90.0), (0.05, 0.05, 0.2), (0.0, 0.0, 0.0)),
 )
 
 
@@ -80,12 +80,20 @@ def test_round_trip_keeps_every_field(tmp_path: Path) -> None:
     assert read_state(path) == STATE
     doc = json.loads(path.read_text())
     assert doc["schema_version"] == 1 and len(doc["bands"]) == 2
-    assert doc["mounting"] == {"rpy_deg": [0.5, -1.25, 90.0], "sigma_deg": [0.05, 0.05, 0.2]}
+    assert doc["mounting"] == {
+        "rpy_deg": [0.5, -1.25, 90.0],
+        "sigma_deg": [0.05, 0.05, 0.2],
+        "base_rpy_deg": [0.0, 0.0, 0.0],
+    }
     assert leftover_temporaries(path) == []
     # the mounting is optional
     bare = replace(STATE, mounting=None, last=None)
     write_state(path, bare)
     assert read_state(path) == bare
+    # a mounting entry that does not say what it was estimated against is none (schema 1)
+    del doc["mounting"]["base_rpy_deg"]
+    path.write_text(json.dumps(doc))
+    assert read_state(path) == replace(STATE, mounting=None)
 
 
 WRITER = """
@@ -195,11 +203,6 @@ FOREIGN = [
         "bridge_source_address is 128 in the store, 129",
     ),
     (
-        "mounting",
-        _vehicle(imu_mounting_rpy_deg=(0.0, 0.0, 90.0)),
-        "imu_mounting_rpy_deg is [0, 0, 0] in the store, [0, 0, 90]",
-    ),
-    (
         "lever arm",
         _vehicle(antenna_lever_arm_m=(0.3, 0.0, -2.5)),
         "antenna_lever_arm_m is [0.3, 0, -3] in the store, [0.3, 0, -2.5]",
@@ -221,6 +224,23 @@ def test_a_store_of_another_imu_or_configuration_is_refused(
     assert "another IMU or configuration" in caplog.records[0].getMessage()
     assert reason in caplog.records[0].getMessage()
     assert StateKeeper(CONFIG, tmp_path).load() == STATE  # the right config takes it
+    assert keeper.mounting is None  # the mounting estimate is that IMU's too
+
+
+def test_biases_of_another_mounting_start_cold_and_the_mounting_estimate_is_kept(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The biases are stored in body axes: under another mounting in effect they are not
+    used (one warning); the mounting estimate is, and the next save writes both with the
+    mounting in effect."""
+    write_state(tmp_path / STATE_FILE, STATE)
+    keeper = StateKeeper(_vehicle(imu_mounting_rpy_deg=(0.0, 0.0, 90.0)), tmp_path)
+    with caplog.at_level(logging.WARNING, logger="gateway.state"):
+        assert keeper.load() is None
+    (warning,) = (r.getMessage() for r in caplog.records)
+    assert "biases learned under another IMU mounting ([0.00, 0.00, 0.00] deg; " in warning
+    assert "[0.00, 0.00, 90.00] deg in effect): cold start for the biases" in warning
+    assert keeper.stored is None and keeper.mounting == STATE.mounting
 
 
 def test_temperature_far_from_what_was_learned_or_too_old_is_refused(
@@ -329,6 +349,8 @@ def test_navgw_state_show_and_clear(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert "accel bias x, y, z +0.0400+/-0.0040, -0.0300+/-0.0040, +0.0100+/-0.0020 m/s^2" in out
     assert "last position 52.2000000 10.5000000 80.25 m, heading 271.5 deg" in out
     assert "mounting estimate roll, pitch, yaw +0.500+/-0.050, -1.250+/-0.050" in out
+    assert "against the configured [vehicle] imu_mounting_rpy_deg = [0.00, 0.00, 0.00]" in out
+    assert "not applied at start: not determined: 1-sigma yaw 0.200 deg, above 0.15" in out
     # shown against another config: it says what does not fit
     assert main(["state", "show", "--dir", str(tmp_path)]) == 0
     assert "does not fit the config: imu_lever_arm_m is [0.5, 0.1, -1]" in capsys.readouterr().out

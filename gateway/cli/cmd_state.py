@@ -11,12 +11,15 @@ from pathlib import Path
 
 from gateway.config.config_schema import ConfigError
 from gateway.config.gateway_config import GatewayConfig, load_config
+from gateway.state.keeper import mounting_problem
 from gateway.state.store import (
     STATE_FILE,
     BandEntry,
     Identity,
+    Mounting,
     StoredState,
     StoreError,
+    angles_text,
     band_of,
     leftover_temporaries,
     read_state,
@@ -31,8 +34,9 @@ def add_subparser(
         "state",
         help=help_text,
         description="show: print the learned state (per IMU temperature band the gyro and "
-        "accelerometer biases with their 1-sigma, how old, the last position and heading) "
-        "and whether it fits the config. clear: remove it (the next start is cold).",
+        "accelerometer biases with their 1-sigma, how old, the last position and heading, "
+        "the IMU mounting estimate and whether a start with the config applies it) and "
+        "whether it fits the config. clear: remove it (the next start is cold).",
     )
     p.add_argument("action", choices=["show", "clear"])
     p.add_argument("--config", type=Path, help="gateway config (TOML): [state] directory")
@@ -112,10 +116,26 @@ def state_text(state: StoredState, path: Path, config: GatewayConfig, now: float
             f"heading {heading} ({_when(last.t_s, now)}; shown only, not used at start)"
         )
     if state.mounting is not None:
-        m = state.mounting
-        rpy = ", ".join(f"{v:+.3f}+/-{s:.3f}" for v, s in zip(m.rpy_deg, m.sigma_deg, strict=True))
-        lines.append(f"  mounting estimate roll, pitch, yaw {rpy} deg")
+        problem = mounting_problem(config, state)
+        lines += _mounting_lines(state.mounting, problem, config.calibration.apply)
     return "\n".join(lines)
+
+
+def _mounting_lines(m: Mounting, problem: str | None, apply: bool) -> list[str]:
+    """The stored mounting estimate, and what a start does with it: ``problem``, why it
+    may not be applied (:func:`mounting_problem`); ``apply``, [calibration] apply."""
+    rpy = ", ".join(f"{v:+.3f}+/-{s:.3f}" for v, s in zip(m.rpy_deg, m.sigma_deg, strict=True))
+    if problem is not None:
+        use = f"not applied at start: {problem}"
+    elif apply:
+        use = "applied at start instead of the configured mounting ([calibration] apply)"
+    else:
+        use = "would be applied at start with [calibration] apply = true"
+    return [
+        f"  mounting estimate roll, pitch, yaw {rpy} deg, against the configured "
+        f"[vehicle] imu_mounting_rpy_deg = {angles_text(m.base_rpy_deg)}",
+        f"    {use}",
+    ]
 
 
 def _band_lines(e: BandEntry, lo: float, hi: float, now: float) -> list[str]:

@@ -290,17 +290,26 @@ class StateSection:
 #: Sections with a plain dataclass, in the order the example prints them.
 @dataclass(frozen=True)
 class CalibrationSection:
-    """[calibration]: the IMU mounting estimate of navgw calibrate, on the live inputs."""
+    """[calibration]: the IMU mounting estimate of navgw calibrate on the live inputs; its use."""
 
     live: bool = field(
         default=True,
         metadata=_doc(
-            "estimate the mounting while running: in the status and the log, never applied"
+            "estimate the mounting while running: in the status and the log; kept in the "
+            "learned state ([state] enabled) once every axis is determined"
         ),
     )
     report_interval_s: float = field(
         default=300.0,
         metadata=_doc("log the estimate this often", **in_range(10.0, 1e5)),
+    )
+    apply: bool = field(
+        default=False,
+        metadata=_doc(
+            "at start, put the kept estimate in effect instead of [vehicle] "
+            "imu_mounting_rpy_deg when it was determined against that one (needs [state] "
+            "enabled; never changed while running; navgw state clear after re-mounting)"
+        ),
     )
 
 

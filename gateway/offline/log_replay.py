@@ -24,7 +24,7 @@ from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import GatewayConfig
 from gateway.fusion.fusion_core import NOTHING, FusionCore, FusionStats
 from gateway.offline.log_inputs import Input, LogInputs
-from gateway.state.keeper import StateKeeper
+from gateway.state.keeper import effective_start
 
 #: Wraps the input iterator, e.g. in a progress bar; gets the CAN log's size in bytes.
 Progress = Callable[[Iterable[Input], LogInputs], Iterator[Input]]
@@ -62,12 +62,12 @@ def replay(
     ``state_dir``: start from the learned state there and save to it at the end (made if
     missing)."""
     config = config or GatewayConfig()
-    inputs = LogInputs(can_log, nmea_log, imu_config(config))
-    keeper = None
     if state_dir is not None:
         Path(state_dir).mkdir(parents=True, exist_ok=True)
-        keeper = StateKeeper(config, state_dir)
-        keeper.load()
+    # the IMU mounting in effect first: the decoder turns the samples by it
+    start = effective_start(config, state_dir)
+    config, keeper = start.config, start.keeper
+    inputs = LogInputs(can_log, nmea_log, imu_config(config))
     warm_start = keeper.warm_start if keeper is not None and keeper.stored else None
     core = FusionCore.from_config(config, inputs.imu_decoder.counters, warm_start=warm_start)
     # the recorded gateway's own frames are no one else's (its claims, and from its address)

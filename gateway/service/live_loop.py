@@ -25,11 +25,13 @@ is fast and runs inline):
   the IMU mounting estimate (:mod:`gateway.service.mounting_watch`, fed every input after
   the core) logged every ``[calibration] report_interval_s``;
 - the state task (``[state] enabled``): every ``save_interval_s`` the learned biases, if the
-  engine has learned better ones, written to the state directory
-  (:class:`~gateway.state.keeper.StateKeeper`); the write (an fsync, tens of ms on an ECU's
-  flash) runs in a worker thread so that it never holds up the core. The learned state is
-  read before the tasks start (the engine starts from it at the first IMU_AUX) and written
-  once more at a clean stop (SIGTERM).
+  engine has learned better ones, and the mounting estimate once determined, written to the
+  state directory (:class:`~gateway.state.keeper.StateKeeper`); the write (an fsync, tens of
+  ms on an ECU's flash) runs in a worker thread so that it never holds up the core. The
+  learned state is read before anything is built
+  (:func:`~gateway.state.keeper.effective_start`: with ``[calibration] apply`` the stored
+  mounting may be the one in effect, for the whole run; the engine starts from the biases
+  at the first IMU_AUX) and written once more at a clean stop (SIGTERM).
 
 Time: every time the core sees (IMU frame arrival, GNSS receive time, claim timers) goes
 through one :class:`~gateway.service.timebase.TimeBase`: the identity live, a scaled clock in the
@@ -72,10 +74,11 @@ from gateway.fusion.fusion_core import FusionCore
 from gateway.isobus.address_claim import ClaimState
 from gateway.service.bus_links import BusPlan, BusSpec, EchoFilter, claim_filters, is_bus_down
 from gateway.service.input_recording import InputRecorder
-from gateway.service.mounting_watch import MountingWatch
+from gateway.service.mounting_watch import MountingWatch, applied_text
 from gateway.service.sdnotify import SdNotifier
 from gateway.service.timebase import LIVE, TimeBase
-from gateway.state.keeper import StateKeeper
+from gateway.state.keeper import StateKeeper, effective_start
+from gateway.state.store import Mounting
 
 log = logging.getLogger(__name__)
 
@@ -182,21 +185,21 @@ class GatewayService:
         timebase: TimeBase = LIVE,
         notifier: SdNotifier | None = None,
     ) -> None:
-        self.config = config
+        start = effective_start(config, config.state.directory if config.state.enabled else None)
+        config = self.config = start.config  # the IMU mounting in effect for the whole run
+        self.applied = start.applied
         self.timebase = timebase
         self.notifier = notifier if notifier is not None else SdNotifier({})
         plan = BusPlan.from_config(config)
         self.imu_decoder = ImuDecoder(imu_config(config))
-        self.state = StateKeeper(config) if config.state.enabled else None
-        if self.state is not None:
-            self.state.load()
+        self.state = start.keeper
         self.core = FusionCore.from_config(
             config,
             self.imu_decoder.counters,
             warm_start=self.state.warm_start if self.state and self.state.stored else None,
         )
         self.mounting = (
-            MountingWatch(config, config.calibration.report_interval_s)
+            MountingWatch(config, config.calibration.report_interval_s, self.applied)
             if config.calibration.live
             else None
         )
@@ -275,7 +278,7 @@ class GatewayService:
         await asyncio.gather(*tasks, return_exceptions=True)
         if self.recorder is not None:
             self.recorder.close()
-        if self.state is not None and self.state.save(self.core, force=True):
+        if self.state is not None and self.state.save(self.core, True, self._mounting_learned()):
             log.info("learned state saved to %s", self.state.path)
         log.info("navgw stopped: %s", self.status_line())
 
@@ -390,12 +393,16 @@ class GatewayService:
         while True:
             await asyncio.sleep(self.timebase.wall_s(self.config.state.save_interval_s))
             try:
-                state = keeper.snapshot(self.core)
+                state = keeper.snapshot(self.core, mounting=self._mounting_learned())
             except Exception:  # never fatal: the gateway runs on without a saved state
                 log.exception("learned state not saved to %s", keeper.path)
                 continue
             if state is not None and await asyncio.to_thread(keeper.write, state):
                 log.info("learned state saved to %s", keeper.path)
+
+    def _mounting_learned(self) -> Mounting | None:
+        """The live mounting estimate to keep: the last summary's, once determined."""
+        return self.mounting.learned if self.mounting is not None else None
 
     async def _run_health(self) -> None:
         watchdog_s = self.notifier.watchdog_interval_s
@@ -538,7 +545,9 @@ class GatewayService:
         if self.core.claimer.spoofed_frames:
             parts.append(f"{self.core.claimer.spoofed_frames} frames from our address not ours")
         if self.mounting is not None:
-            parts.append(self.mounting.summary)
+            parts.append(self.mounting.summary)  # says if a mounting was applied from state
+        elif self.applied is not None:
+            parts.append(applied_text(self.applied))
         return ", ".join(parts)
 
 

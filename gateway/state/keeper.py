@@ -16,14 +16,26 @@ heading are shown by ``navgw state show`` and are not used to start the engines:
 vehicle may have been towed or turned, a prior that may be wrong cannot be sent within its
 stated accuracy, and the engines find the heading from the first course over ground (or
 HDT) within seconds of driving off anyway.
+
+The IMU mounting (issue 17): the service's live estimate, once every axis is determined, is
+kept in the store against the configured mounting it was made with (:meth:`StateKeeper.
+snapshot`); with ``[calibration] apply`` a start puts it in effect instead of the configured
+one (:func:`effective_start`, the one place that decides, for the service and replay),
+never while running: a change of mounting would jump roll and pitch on the bus. The biases
+are stored in body axes, so they belong to the mounting IN EFFECT when they were learned
+(the store's identity): a start that applies another mounting starts them cold, and keeps
+the mounting estimate, which is checked against the configured mounting instead.
 """
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import math
+from dataclasses import dataclass
 from pathlib import Path
 
+from gateway.calibration.mounting import AXES, CalibrationConfig
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.solution import LearnedState
 from gateway.fusion.fusion_core import FusionCore, learned_text
@@ -35,10 +47,15 @@ from gateway.state.store import (
     BiasGrowth,
     Identity,
     LastPose,
+    Mounting,
     StoredState,
     StoreError,
+    Vec3,
+    angles_text,
     merged,
+    mounting_text,
     read_state,
+    same_setting,
     seed_for,
     write_state,
 )
@@ -46,6 +63,16 @@ from gateway.state.store import (
 log = logging.getLogger(__name__)
 
 SECONDS_PER_DAY = 86400.0
+#: A stored mounting is applied only with every axis's 1-sigma within navgw calibrate's limit
+#: of a determined axis (deg).
+MAX_APPLIED_SIGMA_DEG = CalibrationConfig.max_sigma_deg
+#: A new live estimate replaces the stored one when its largest 1-sigma is at most this
+#: fraction of the stored one's: the mounting applied at the next start, and with it the
+#: biases learned under it, does not change for an estimate that is no better.
+MORE_PRECISE = 0.8
+#: ... or when some axis is further from the stored one than this many of their combined
+#: 1-sigma: the IMU has moved (or the store's estimate was wrong), and the new one is true.
+MOVED_SIGMAS = 3.0
 
 
 class StateKeeper:
@@ -61,6 +88,7 @@ class StateKeeper:
         self.band_width_c = state.temperature_band_c
         self.max_age_s = state.max_age_days * SECONDS_PER_DAY
         self.stored: StoredState | None = None  # usable state: read, and saved since
+        self.mounting: Mounting | None = None  # the mounting estimate kept: read, or learned
         self.problem: str | None = None  # why the file read at start is not used
         self.usable_directory = True
         self.saves = 0  # files written
@@ -70,34 +98,65 @@ class StateKeeper:
     def load(self) -> StoredState | None:
         """Read the file; the state if it is usable for this configuration, else None (with
         one warning saying why, or an info line when there is none)."""
+        return self.take(self.read())
+
+    def read(self) -> StoredState | None:
+        """The file as it is, of whatever identity; None if there is none (an info line) or
+        it is unusable (one warning, and :attr:`problem`, saying why)."""
         if not self.directory.is_dir():
             self.usable_directory = False
+            self.problem = f"{self.directory} is not a directory"
             log.warning(
-                "learned state not kept: %s is not a directory (systemd's StateDirectory=navgw "
-                "makes it; or set [state] directory, or enabled = false): cold start",
-                self.directory,
+                "learned state not kept: %s (systemd's StateDirectory=navgw makes it; or set "
+                "[state] directory, or enabled = false): cold start",
+                self.problem,
             )
             return None
         try:
-            state = read_state(self.path)
-            if problem := state.identity.mismatch(self.identity):
-                raise StoreError(f"another IMU or configuration: {problem}")
+            return read_state(self.path)
         except FileNotFoundError:
             log.info("no learned state in %s: cold start", self.path)
-            return None
         except StoreError as err:
             self._reject(str(err))
-            return None
         except OSError as err:
             self._reject(f"cannot be read ({err.strerror})")
-            return None
         except Exception as err:  # never fatal: a warm start is worth no failed start
             self._reject(f"cannot be used ({err!r})")
+        return None
+
+    def take(
+        self, state: StoredState | None, applied: Mounting | None = None
+    ) -> StoredState | None:
+        """Start from ``state`` (:meth:`read`'s) with ``applied`` in effect if given (else
+        the configured mounting): the state if its biases are usable, else None with one
+        warning. Biases learned under another mounting are not (a cold start for them), but
+        the mounting estimate is kept: the next save writes the mounting in effect."""
+        if applied is not None:
+            self.identity = dataclasses.replace(self.identity, imu_mounting_rpy_deg=applied.rpy_deg)
+        if state is None:
             return None
-        self.stored = StoredState(
-            self.identity, state.bands, state.written_s, state.last, state.mounting
-        )
+        if problem := state.identity.mismatch_but_mounting(self.identity):
+            self._reject(f"another IMU or configuration: {problem}")
+            return None
+        self.mounting = state.mounting
+        if not same_setting(
+            state.identity.imu_mounting_rpy_deg, self.identity.imu_mounting_rpy_deg
+        ):
+            self._cold_biases(state.identity.imu_mounting_rpy_deg)
+            return None
+        self.stored = dataclasses.replace(state, identity=self.identity)
         return self.stored
+
+    def _cold_biases(self, learned_under: Vec3) -> None:
+        self.problem = (
+            f"biases learned under another IMU mounting ({angles_text(learned_under)} deg; "
+            f"{angles_text(self.identity.imu_mounting_rpy_deg)} deg in effect)"
+        )
+        log.warning(
+            "learned state %s: %s: cold start for the biases (the mounting estimate is kept)",
+            self.path,
+            self.problem,
+        )
 
     def _reject(self, reason: str) -> None:
         self.problem = reason
@@ -138,10 +197,13 @@ class StateKeeper:
 
     # --- saving -------------------------------------------------------------------------
 
-    def snapshot(self, core: FusionCore, force: bool = False) -> StoredState | None:
+    def snapshot(
+        self, core: FusionCore, force: bool = False, mounting: Mounting | None = None
+    ) -> StoredState | None:
         """The state to write now (kept in memory), or None: nothing better learned (unless
         ``force``: a clean stop writes the last position even so), no temperature or no
-        biases yet, or no usable directory."""
+        biases yet, or no usable directory. ``mounting``: the live estimate, determined,
+        against :attr:`base_rpy_deg`; kept if it replaces the stored one (:func:`replaces`)."""
         learned = core.engine.learned_state()
         temp_c = core.imu_temp_c
         if not self.usable_directory or learned is None or temp_c is None:
@@ -159,12 +221,30 @@ class StateKeeper:
         state, improved = merged(self.stored, self.identity, entry, self.growth, self.band_width_c)
         if sol.lat_deg is not None and sol.lon_deg is not None and sol.alt_m is not None:
             heading = None if sol.yaw_rad is None else math.degrees(sol.yaw_rad) % 360.0
-            last = LastPose(sol.t, sol.lat_deg, sol.lon_deg, sol.alt_m, heading)
-            state = StoredState(state.identity, state.bands, state.written_s, last, state.mounting)
-        if not (improved or force):
+            state = dataclasses.replace(
+                state, last=LastPose(sol.t, sol.lat_deg, sol.lon_deg, sol.alt_m, heading)
+            )
+        kept = self._kept_mounting(mounting)
+        if not (improved or kept is not self.mounting or force):
             return None
-        self.stored = state
-        return state
+        self.stored = dataclasses.replace(state, mounting=kept)
+        self.mounting = kept
+        return self.stored
+
+    def _kept_mounting(self, new: Mounting | None) -> Mounting | None:
+        """The mounting estimate to store: ``new`` if it replaces the stored one (a warning
+        if it does for being off it), else the stored one."""
+        old = self.mounting
+        if new is None or not replaces(new, old):
+            return old
+        if old is not None and _moved(new, old):
+            log.warning(
+                "IMU mounting estimate %s deg is off the stored %s deg beyond their 1-sigma: "
+                "has the IMU moved? Stored in its place (after re-mounting it: navgw state clear)",
+                angles_text(new.rpy_deg),
+                angles_text(old.rpy_deg),
+            )
+        return new
 
     def write(self, state: StoredState) -> bool:
         """Write ``state`` (blocking: fsync); False with a warning if it cannot be."""
@@ -176,10 +256,10 @@ class StateKeeper:
         self.saves += 1
         return True
 
-    def save(self, core: FusionCore, force: bool = False) -> bool:
+    def save(self, core: FusionCore, force: bool = False, mounting: Mounting | None = None) -> bool:
         """:meth:`snapshot` and :meth:`write` at once; True if a file was written."""
         try:
-            state = self.snapshot(core, force)
+            state = self.snapshot(core, force, mounting)
         except Exception as err:  # never fatal: a stop or a replay must end cleanly
             log.warning("learned state not saved to %s: %r", self.path, err)
             return False
@@ -189,3 +269,121 @@ class StateKeeper:
 def _plausible(temp_c: float) -> bool:
     """A temperature the IMU can have (TEMP_OUT garbage is not a band)."""
     return math.isfinite(temp_c) and TEMP_RANGE_C[0] <= temp_c <= TEMP_RANGE_C[1]
+
+
+# ==================================================================== the IMU mounting
+
+
+def replaces(new: Mounting, old: Mounting | None) -> bool:
+    """Whether a determined live estimate takes the stored one's place: none stored, one
+    against another configured mounting, a clearly more precise one (:data:`MORE_PRECISE`),
+    or one the IMU has moved away from (:data:`MOVED_SIGMAS`)."""
+    return (
+        old is None
+        or not same_setting(new.base_rpy_deg, old.base_rpy_deg)
+        or max(new.sigma_deg) <= MORE_PRECISE * max(old.sigma_deg)
+        or _moved(new, old)
+    )
+
+
+def _moved(new: Mounting, old: Mounting) -> bool:
+    """Some axis of ``new`` is off ``old`` beyond :data:`MOVED_SIGMAS` combined 1-sigma."""
+    return any(
+        abs((a - b + 180.0) % 360.0 - 180.0) > MOVED_SIGMAS * math.hypot(sa, sb)
+        for a, b, sa, sb in zip(new.rpy_deg, old.rpy_deg, new.sigma_deg, old.sigma_deg, strict=True)
+    )
+
+
+def mounting_problem(config: GatewayConfig, state: StoredState) -> str | None:
+    """Why the mounting estimate in ``state`` may not be put in effect with ``config`` (None:
+    it may): none stored, the store of another IMU or configuration (the mounting aside:
+    the one in effect may be an applied one), estimated against another configured
+    mounting, or an axis not determined (1-sigma above :data:`MAX_APPLIED_SIGMA_DEG`)."""
+    m = state.mounting
+    if m is None:
+        return "no mounting estimate stored"
+    if problem := state.identity.mismatch_but_mounting(Identity.from_config(config)):
+        return f"the store is of another IMU or configuration: {problem}"
+    configured, base = config.vehicle.imu_mounting_rpy_deg, m.base_rpy_deg
+    if not same_setting(base, configured):
+        return (
+            f"it was estimated against [vehicle] imu_mounting_rpy_deg = {angles_text(base)}, "
+            f"the config has {angles_text(configured)}"
+        )
+    loose = [
+        f"{axis} {sigma:.3f}"
+        for axis, sigma in zip(AXES, m.sigma_deg, strict=True)
+        if sigma > MAX_APPLIED_SIGMA_DEG
+    ]
+    if loose:
+        return f"not determined: 1-sigma {', '.join(loose)} deg, above {MAX_APPLIED_SIGMA_DEG:g}"
+    return None
+
+
+@dataclass(frozen=True)
+class EffectiveStart:
+    """What a start takes from the learned state: the config to run with (the stored
+    mounting in ``vehicle.imu_mounting_rpy_deg`` when it is applied), the keeper of the
+    learned state built for it (None: none kept), the mounting applied (None: the
+    configured one is in effect) and the line logged about it (None: apply is off)."""
+
+    config: GatewayConfig
+    keeper: StateKeeper | None
+    applied: Mounting | None
+    message: str | None
+
+
+def effective_start(config: GatewayConfig, directory: str | Path | None) -> EffectiveStart:
+    """Read the learned state in ``directory`` (None: none is kept) and decide, with
+    ``[calibration] apply``, which IMU mounting is in effect for the whole run: the stored
+    estimate if :func:`mounting_problem` finds none, else the configured one; one line
+    logged about it (:func:`_log_start`). Never fatal."""
+    keeper = StateKeeper(config, directory) if directory is not None else None
+    state = keeper.read() if keeper is not None else None
+    problem = _apply_problem(config, keeper, state)
+    applied = state.mounting if state is not None and problem is None else None
+    if keeper is not None:
+        keeper.take(state, applied)
+    message = _log_start(config, applied, problem)
+    if applied is not None:
+        vehicle = dataclasses.replace(config.vehicle, imu_mounting_rpy_deg=applied.rpy_deg)
+        config = dataclasses.replace(config, vehicle=vehicle)
+    return EffectiveStart(config, keeper, applied, message)
+
+
+def _log_start(config: GatewayConfig, applied: Mounting | None, problem: str | None) -> str | None:
+    """The line logged: INFO when ``applied``, a WARNING naming ``problem`` when apply was
+    asked in vain; None (nothing logged) when apply is off."""
+    if applied is not None:
+        line = (
+            f"IMU mounting from the learned state applied: {mounting_text(applied)} "
+            f"(estimated against the configured {angles_text(applied.base_rpy_deg)})"
+        )
+        log.info("%s", line)
+        return line
+    if not config.calibration.apply:
+        return None
+    configured = angles_text(config.vehicle.imu_mounting_rpy_deg)
+    line = (
+        f"IMU mounting from the learned state not applied: {problem}; the configured "
+        f"[vehicle] imu_mounting_rpy_deg = {configured} is in effect"
+    )
+    log.warning("%s", line)
+    return line
+
+
+def _apply_problem(
+    config: GatewayConfig, keeper: StateKeeper | None, state: StoredState | None
+) -> str | None:
+    """Why no stored mounting is applied at this start (None: it is)."""
+    if not config.calibration.apply:
+        return "[calibration] apply is off"
+    if keeper is None:
+        return "no learned state is kept (the service needs [state] enabled, replay --state-dir)"
+    if state is None:
+        return (
+            f"the learned state is unusable: {keeper.problem}"
+            if keeper.problem
+            else ("no learned state stored yet")
+        )
+    return mounting_problem(config, state)

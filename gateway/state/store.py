@@ -10,7 +10,12 @@ gateway writes every ``save_interval_s`` and at a clean stop and reads at start:
   estimates with their 1-sigma per body axis, as of ``t_s`` at ``temp_c``
   (:class:`BandEntry`);
 - ``last``: the last reference-point position and heading (shown, not used: see
-  :mod:`gateway.state.keeper`); ``mounting``: an optional IMU mounting estimate (deg).
+  :mod:`gateway.state.keeper`);
+- ``mounting``: the service's live IMU mounting estimate, once determined (:class:`Mounting`),
+  with the configured mounting it was made against (``base_rpy_deg``); or null. The field was
+  optional in schema 1 from the start, so ``base_rpy_deg`` came without a new version: a
+  mounting entry without it (nothing wrote one) reads as none, and a navgw that does not know
+  the key reads the rest of the file as before.
 
 Reading is strict: anything but a complete, finite, physically possible state of this
 schema is a :class:`StoreError` whose message says what was wrong and what was expected,
@@ -37,6 +42,7 @@ from pathlib import Path
 from typing import Any
 
 from drivers.units import DEG_TO_RAD, MG_MPS2
+from gateway.calibration.mounting import AXES
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.solution import LearnedState
@@ -45,6 +51,8 @@ Vec3 = tuple[float, float, float]
 
 SCHEMA_VERSION = 1
 STATE_FILE = "learned_state.json"
+#: Two stored angles (deg) or lever arms (m) closer than this are the same setting.
+SAME_SETTING = 1e-6
 #: Biases beyond these are not an ADIS16334's (initial bias error a few deg/s, some 10 mg):
 #: a stored value this large is corruption, not learning.
 MAX_GYRO_BIAS_RPS = 5.0 * DEG_TO_RAD
@@ -97,14 +105,21 @@ class Identity:
         """What differs from ``expected`` (the config's), first field first; None if alike."""
         for name in self.__dataclass_fields__:
             mine, theirs = getattr(self, name), getattr(expected, name)
-            same = (
-                mine == theirs
-                if isinstance(mine, int)
-                else all(abs(a - b) <= 1e-6 for a, b in zip(mine, theirs, strict=True))
-            )
+            same = mine == theirs if isinstance(mine, int) else same_setting(mine, theirs)
             if not same:
                 return f"{name} is {_text(mine)} in the store, {_text(theirs)} in the config"
         return None
+
+    def mismatch_but_mounting(self, expected: Identity) -> str | None:
+        """:meth:`mismatch` on every field but the mounting: the biases are the IMU's in
+        body axes, and only they depend on it."""
+        mounting = expected.imu_mounting_rpy_deg
+        return replace(self, imu_mounting_rpy_deg=mounting).mismatch(expected)
+
+
+def same_setting(a: Vec3, b: Vec3) -> bool:
+    """Two stored vectors of a setting (mounting deg, lever arm m) are the same one."""
+    return all(abs(x - y) <= SAME_SETTING for x, y in zip(a, b, strict=True))
 
 
 @dataclass(frozen=True)
@@ -140,11 +155,15 @@ class LastPose:
 
 @dataclass(frozen=True)
 class Mounting:
-    """An IMU mounting estimate: roll, pitch, yaw of the IMU axes in the body frame, deg,
-    with their 1-sigma, deg (filled by a calibration; carried, not used, by the store)."""
+    """An IMU mounting estimate: roll, pitch, yaw of the IMU axes in the body frame, deg, as
+    ``[vehicle] imu_mounting_rpy_deg`` (the whole mounting, not a residual), with their
+    1-sigma, deg; and ``base_rpy_deg``, the configured mounting it was estimated against
+    (the samples were turned by it, or by a mounting applied on top of it): it is valid for
+    that configuration only (:func:`gateway.state.keeper.mounting_problem`)."""
 
     rpy_deg: Vec3
     sigma_deg: Vec3
+    base_rpy_deg: Vec3
 
 
 @dataclass(frozen=True)
@@ -296,6 +315,17 @@ def _better(new: Biases, old: Biases, taken: list[bool], first: int) -> Biases:
     return Biases(_vec(bias), _vec(sigma))
 
 
+def angles_text(v: Vec3) -> str:
+    """'[0.43, -0.74, 0.94]': angles in deg as the config writes them, to 0.01 deg."""
+    return "[" + ", ".join(f"{x:.2f}" for x in v) + "]"
+
+
+def mounting_text(m: Mounting) -> str:
+    """'roll 0.43+/-0.09, pitch -0.74+/-0.10, yaw 0.94+/-0.10 deg'."""
+    axes = zip(AXES, m.rpy_deg, m.sigma_deg, strict=True)
+    return ", ".join(f"{axis} {a:.2f}+/-{s:.2f}" for axis, a, s in axes) + " deg"
+
+
 def _vec(v: Iterable[float]) -> Vec3:
     a, b, c = v
     return (float(a), float(b), float(c))
@@ -351,6 +381,7 @@ def to_json(state: StoredState) -> dict[str, Any]:
         doc["mounting"] = {
             "rpy_deg": list(state.mounting.rpy_deg),
             "sigma_deg": list(state.mounting.sigma_deg),
+            "base_rpy_deg": list(state.mounting.base_rpy_deg),
         }
     return doc
 
@@ -461,7 +492,9 @@ def from_json(doc: Any) -> StoredState:
     mounting = None
     if top.raw("mounting") is not None:
         mr = top.sub("mounting")
-        mounting = Mounting(mr.vec3("rpy_deg", -360.0, 360.0), mr.vec3("sigma_deg", 0.0, 360.0))
+        rpy, sigma = mr.vec3("rpy_deg", -360.0, 360.0), mr.vec3("sigma_deg", 0.0, 360.0)
+        if mr.table.get("base_rpy_deg") is not None:  # none: against an unknown mounting
+            mounting = Mounting(rpy, sigma, mr.vec3("base_rpy_deg", -360.0, 360.0))
     return StoredState(
         identity=identity,
         bands=tuple(sorted(bands, key=lambda e: e.temp_c)),
