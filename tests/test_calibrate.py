@@ -89,7 +89,9 @@ def test_cli_corrects_a_wrong_mounting_with_a_line_load_config_accepts(
     assert out.startswith("[vehicle]\nimu_mounting_rpy_deg = [")
     pasted = tmp_path / "pasted.toml"
     pasted.write_text(out)
-    found = load_config(pasted).vehicle.imu_mounting_rpy_deg
+    vehicle = load_config(pasted).vehicle
+    found = vehicle.imu_mounting_rpy_deg
+    assert 0.0 < vehicle.imu_mounting_sigma_deg <= 0.15  # stated with roll and pitch
     error = mounting_error_deg(found, truth)
     assert np.all(np.abs(error) < MAX_ERROR_DEG), (truth, found, error)
     assert re.search(r"roll +-?\d+\.\d\d \+/- 0\.\d\d", err)

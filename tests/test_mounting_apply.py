@@ -30,6 +30,7 @@ from gateway.cli.main import main
 from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import (
     CalibrationSection,
+    Engine,
     GatewayConfig,
     GnssSection,
     StateSection,
@@ -37,7 +38,7 @@ from gateway.config.gateway_config import (
     load_config,
 )
 from gateway.demo.accuracy import Trace, evaluate
-from gateway.fusion.fusion_core import BusFrame
+from gateway.fusion.fusion_core import BusFrame, FusionCore
 from gateway.offline.log_inputs import LogInputs
 from gateway.service.live_loop import GatewayService
 from gateway.service.timebase import TimeBase
@@ -184,6 +185,8 @@ def test_applied_it_puts_the_engine_near_the_true_mounting_and_the_biases_start_
         stored.rpy_deg
     )
     assert applied.imu_decoder.config == imu_config(with_mounting(drive.config, stored.rpy_deg))
+    # its roll/pitch 1-sigma is stated with roll and pitch (test_the_mounting_sigma_...)
+    assert applied.config.vehicle.imu_mounting_sigma_deg == max(stored.sigma_deg[:2])
     assert sum(level == logging.WARNING for level, _ in logged) == 1, logged
     assert any("biases learned under another IMU mounting" in m for _, m in logged)
     assert any(
@@ -329,3 +332,27 @@ def test_a_stored_estimate_is_replaced_only_by_a_better_or_a_contradicting_one()
     moved = 0.5 + 3.0 * math.hypot(0.09, 0.09) + 0.01
     assert replaces(dataclasses.replace(old, rpy_deg=(moved, -0.8, 1.0)), old)
     assert replaces(dataclasses.replace(old, base_rpy_deg=(0.0, 0.0, 1.0)), old)
+
+
+@pytest.mark.parametrize("engine", list(Engine))
+def test_the_mounting_sigma_is_in_the_stated_roll_pitch_accuracy(
+    engine: Engine, tmp_path: Path
+) -> None:
+    """An estimated mounting is not exact: its roll/pitch 1-sigma is added (in quadrature)
+    to the tilt 1-sigma the engines state (NAVGW_STATUS byte 7), never left out."""
+    run = generate(SCENARIOS["short"], tmp_path, seed=2)
+    config = load_config(run.config_file).with_engine(engine)
+    sigma_deg = 0.12
+    mounted = dataclasses.replace(
+        config, vehicle=dataclasses.replace(config.vehicle, imu_mounting_sigma_deg=sigma_deg)
+    )
+    stated = []
+    for c in (config, mounted):
+        core = FusionCore.from_config(c)
+        for item in inputs_of(run, imu_config(c))[:20000]:
+            core.on_input(item)
+        stated.append(core.solution().sigma_tilt_rad)
+    plain, with_mounting_sigma = stated
+    assert plain is not None and with_mounting_sigma is not None
+    assert with_mounting_sigma == pytest.approx(math.hypot(plain, math.radians(sigma_deg)))
+    assert with_mounting_sigma > math.radians(sigma_deg)

@@ -128,11 +128,16 @@ def report_text(cal: Calibration) -> str:
 
 
 def config_line(cal: Calibration) -> str:
-    """The TOML to paste: the [vehicle] key with the mounting, its sigma as a comment."""
+    """The TOML to paste: the [vehicle] keys with the mounting (its sigma as a comment) and
+    its roll/pitch 1-sigma, which the gateway states with roll and pitch."""
     assert cal.mounting_rpy_deg is not None and cal.result is not None
     angles = ", ".join(f"{a:.2f}" for a in cal.mounting_rpy_deg)
-    sigmas = ", ".join(f"{s:.2f}" for s in cal.result.sigma_deg)
-    return f"[vehicle]\nimu_mounting_rpy_deg = [{angles}]  # navgw calibrate, 1-sigma {sigmas} deg"
+    sigma = cal.result.sigma_deg
+    sigmas = ", ".join(f"{s:.2f}" for s in sigma)
+    return (
+        f"[vehicle]\nimu_mounting_rpy_deg = [{angles}]  # navgw calibrate, 1-sigma {sigmas} deg\n"
+        f"imu_mounting_sigma_deg = {max(sigma[0], sigma[1]):.2f}"
+    )
 
 
 def run(args: argparse.Namespace) -> int:

@@ -57,6 +57,14 @@ class VehicleSection:
         default=(0.0, 0.0, 0.0),
         metadata=_doc("IMU axes in the body frame: v_b = Rz(yaw) Ry(pitch) Rx(roll) v_imu"),
     )
+    imu_mounting_sigma_deg: float = field(
+        default=0.0,
+        metadata=_doc(
+            "1-sigma of that mounting's roll and pitch, added to the roll/pitch accuracy sent "
+            "(NAVGW_STATUS); 0: exact. [calibration] apply sets the applied estimate's",
+            **in_range(0.0, 10.0),
+        ),
+    )
 
 
 class Engine(Enum):
@@ -332,6 +340,7 @@ ENGINE_SECTIONS: dict[str, type] = {"observer": ObserverConfig, "ekf": EkfConfig
 _SHARED = {
     "antenna_lever_arm_m": "vehicle",
     "imu_lever_arm_m": "vehicle",
+    "imu_mounting_sigma_deg": "vehicle",
     "epoch_time": "gnss",
     "receiver_latency_s": "gnss",
     "gyro_arw_deg_per_sqrt_h": "imu",

@@ -346,7 +346,12 @@ def effective_start(config: GatewayConfig, directory: str | Path | None) -> Effe
         keeper.take(state, applied)
     message = _log_start(config, applied, problem)
     if applied is not None:
-        vehicle = dataclasses.replace(config.vehicle, imu_mounting_rpy_deg=applied.rpy_deg)
+        # its roll/pitch 1-sigma goes into the accuracy sent: the estimate is not exact
+        vehicle = dataclasses.replace(
+            config.vehicle,
+            imu_mounting_rpy_deg=applied.rpy_deg,
+            imu_mounting_sigma_deg=max(applied.sigma_deg[0], applied.sigma_deg[1]),
+        )
         config = dataclasses.replace(config, vehicle=vehicle)
     return EffectiveStart(config, keeper, applied, message)
 

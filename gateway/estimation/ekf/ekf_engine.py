@@ -546,17 +546,21 @@ class EkfEngine:
 
     def _sigma_tilt_rad(self) -> float | None:
         """Roll/pitch 1-sigma: from P once it runs; before, what levelling leaves (the
-        accelerometer bias over g, the window's motion, gyro bias drift since)."""
+        accelerometer bias over g, the window's motion, gyro bias drift since); with the IMU
+        mounting's own 1-sigma (an estimated mounting is not exact)."""
         p, tun = self._p, self._tuning
+        mounting_var = (self.cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         if p is not None:
-            return math.sqrt(0.5 * (p[6, 6] + p[7, 7]))
+            return math.sqrt(0.5 * (p[6, 6] + p[7, 7]) + mounting_var)
         if self._ins is None or tun is None or self._t_s is None:
             return None
         drift = self._levelled_gyro_bias_sigma_rps() * max(0.0, self._t_s - self._t_levelled_s)
         sig_ba = tun.sigma_bias_a0_mps2
         if self._seed is not None:
             sig_ba = max(self._seed.sigma_a_mps2[0], self._seed.sigma_a_mps2[1])
-        return math.sqrt((sig_ba / GRAVITY_MPS2) ** 2 + self._sigma_level_rad**2 + drift**2)
+        return math.sqrt(
+            (sig_ba / GRAVITY_MPS2) ** 2 + self._sigma_level_rad**2 + drift**2 + mounting_var
+        )
 
     def _reset_from_fix(self, fix: GnssFix, t_e: float, row: Array) -> None:
         """Recovery after a long outage or a run of rejections: position/velocity from GNSS.

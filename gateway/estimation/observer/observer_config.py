@@ -28,6 +28,8 @@ class ObserverConfig:
     # --- vehicle geometry (SPEC 5) ---
     antenna_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # antenna rel. reference point, body
     imu_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # IMU rel. reference point, body
+    # roll/pitch 1-sigma of the IMU mounting, deg: added to the stated tilt accuracy
+    imu_mounting_sigma_deg: float = 0.0
 
     # --- GNSS timing ---
     epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock

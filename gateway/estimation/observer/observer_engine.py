@@ -1003,7 +1003,8 @@ class ObserverEngine:
         - open-loop drift b_g t while coasting;
         - the tilt error of levelling on a moving window (:mod:`gateway.estimation.levelling`),
           decaying
-          with tau while the tilt loop is closed.
+          with tau while the tilt loop is closed;
+        - the IMU mounting's own roll/pitch 1-sigma (an estimated mounting is not exact).
         """
         cfg = self.cfg
         g = GRAVITY_MPS2
@@ -1018,4 +1019,5 @@ class ObserverEngine:
             + (sigma_ba / g) ** 2
             + (sigma_bg * coasting_s) ** 2
             + self._sigma_level_rad**2
+            + (cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         )
