@@ -6,8 +6,9 @@ Generates a scenario (default ``field``, 956 s at 204.8 Hz) into a temporary dir
 measures CPU time (``time.process_time``, so a busy host slows the wall clock, not the
 figures) of each stage in isolation on the same inputs, and of the whole replay per engine:
 
-- candump parse: the IMU log's lines into python-can messages;
-- IMU decode: those messages into samples (pairing, SEQ, scaling, mounting);
+- candump parse: the IMU log's lines into records (:meth:`CandumpReader.records`: a common
+  line's fields, as replay takes them);
+- IMU decode: those records into samples (pairing, SEQ, scaling, mounting);
 - NMEA decode: the GNSS log into fixes;
 - engine: the decoded inputs through the engine alone (imu/gnss calls);
 - core: the same through the fusion core (engine, solution, output guard, scheduler and
@@ -69,9 +70,12 @@ def main() -> None:
 
 
 def report(imu_log: Path, gnss_log: Path, config: GatewayConfig, tmp: Path, name: str) -> None:
-    t_parse, messages = cpu(lambda: list(read_candump(imu_log)))
+    # as replay reads them: records (a common line's fields, no can.Message), fed as they are
+    t_parse, records = cpu(lambda: list(read_candump(imu_log).records()))
     decoder = ImuDecoder(imu_config(config))
-    t_decode, samples = cpu(lambda: [x for m in messages for x in decoder.feed(m)])
+    feed = decoder.feed_record
+    t_decode, decoded = cpu(lambda: [feed(r) for r in records])
+    samples = [x for x in decoded if x is not None]
     n = sum(isinstance(x, ImuSample) for x in samples)
     t_nmea, fixes = cpu(lambda: list(read_fixes_from_log(read_nmea_log(gnss_log), NmeaDecoder())))
     inputs = sorted([*samples, *fixes], key=lambda x: x.t)

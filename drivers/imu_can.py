@@ -77,7 +77,7 @@ from drivers.errors import ErrorPolicy
 from drivers.frame_reader import FrameReader
 from drivers.log_limit import BadInput
 from drivers.logs.candump import CandumpReader, FrameFields, read_candump
-from drivers.samples import ImuAux, ImuCounters, ImuSample, Vec3
+from drivers.samples import Float3, ImuAux, ImuCounters, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 
 log = logging.getLogger(__name__)
@@ -259,7 +259,7 @@ def _half_unpacker(frame: ImuFrame) -> tuple[_Unpacker, int]:
     return decoder.compile(list(outputs.values())), (1 << reserved.length) - 1
 
 
-_SampleMaker = Callable[[float, float, Vec3, Vec3, int, bool, bool], ImuSample]
+_SampleMaker = Callable[[float, float, Float3, Float3, int, bool, bool], ImuSample]
 
 
 def _sample_maker() -> _SampleMaker:
@@ -279,7 +279,7 @@ def _sample_maker() -> _SampleMaker:
     ):
 
         def construct(
-            t: float, dt: float, w: Vec3, f: Vec3, seq: int, alarm: bool, saturated: bool
+            t: float, dt: float, w: Float3, f: Float3, seq: int, alarm: bool, saturated: bool
         ) -> ImuSample:
             return ImuSample(
                 t=t, dt=dt, w_ib_b=w, f_ib_b=f, seq=seq, alarm=alarm, saturated=saturated
@@ -292,7 +292,7 @@ def _sample_maker() -> _SampleMaker:
     )
 
     def make(
-        t: float, dt: float, w: Vec3, f: Vec3, seq: int, alarm: bool, saturated: bool
+        t: float, dt: float, w: Float3, f: Float3, seq: int, alarm: bool, saturated: bool
     ) -> ImuSample:
         sample = new(cls)
         set_t(sample, t)
@@ -507,12 +507,18 @@ class ImuDecoder:
                 f"ND bit clear in SEQ {seq}: register read "
                 "before new data; expected ND set on every sample",
             )
-        w_ib_b, f_ib_b = np.array(g[_X : _Z + 1]), np.array(f[_X : _Z + 1])
+        w_ib_b: Float3 = (g[_X], g[_Y], g[_Z])
+        f_ib_b: Float3 = (f[_X], f[_Y], f[_Z])
         if self._mounted:
-            w_ib_b, f_ib_b = self.c_b_imu @ w_ib_b, self.c_b_imu @ f_ib_b
+            w_ib_b, f_ib_b = self._mount(w_ib_b), self._mount(f_ib_b)
         dt = self._dt
         t = self._offset + n * dt - self._latency
         return _new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated)
+
+    def _mount(self, v_imu: Float3) -> Float3:
+        """C v_imu: the IMU's axes turned into the body's, by numpy's product as ever."""
+        x, y, z = (self.c_b_imu @ np.array(v_imu)).tolist()
+        return (x, y, z)
 
     def _unwrap(self, seq: int, a: float) -> int | None:
         """The index of sample ``seq`` arriving at ``a`` (None if late); counts SEQ gaps lost."""

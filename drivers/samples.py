@@ -11,9 +11,10 @@ from dataclasses import dataclass
 from enum import IntEnum
 
 import numpy as np
-import numpy.typing as npt
 
-Vec3 = npt.NDArray[np.float64]
+#: Three floats: a body vector on the per-sample path (a numpy array of 3 costs more to make
+#: and to read than the arithmetic done with it).
+Float3 = tuple[float, float, float]
 
 
 class FixQuality(IntEnum):
@@ -46,8 +47,8 @@ class ImuSample:
 
     t: float
     dt: float
-    w_ib_b: Vec3  # rad/s, shape (3,), after the mounting rotation
-    f_ib_b: Vec3  # m/s^2, shape (3,), specific force, after the mounting rotation
+    w_ib_b: Float3  # rad/s, after the mounting rotation
+    f_ib_b: Float3  # m/s^2, specific force, after the mounting rotation
     seq: int
     alarm: bool = False  # EA bit of any output word: some DIAG_STAT flag is set
     saturated: bool = False  # some axis at the end of its 14-bit register range

@@ -153,8 +153,10 @@ def imu_stream(
     w_b = st.w_b_rps + np.asarray(bias_g_rps) + noise_g_rps * rng.standard_normal((n, 3))
     f_b = f_b + np.asarray(bias_a_mps2) + noise_a_mps2 * rng.standard_normal((n, 3))
     return [
-        ImuSample(t=T0_S + float(t[k]), dt=dt_s, w_ib_b=w_b[k], f_ib_b=f_b[k], seq=k % 256)
-        for k in range(n)
+        ImuSample(
+            t=T0_S + t_k, dt=dt_s, w_ib_b=(w[0], w[1], w[2]), f_ib_b=(f[0], f[1], f[2]), seq=k % 256
+        )
+        for k, (t_k, w, f) in enumerate(zip(t.tolist(), w_b.tolist(), f_b.tolist(), strict=True))
     ]
 
 

@@ -151,7 +151,7 @@ def test_total_mounting_composes_the_residual_after_the_configured_one() -> None
 
 
 def sample(t: float, w: tuple[float, float, float], f: tuple[float, float, float]) -> ImuSample:
-    return ImuSample(t, 0.005, np.array(w), np.array(f), seq=0)
+    return ImuSample(t, 0.005, w, f, seq=0)
 
 
 def test_turn_axis_is_the_gyros_line_through_the_bias() -> None:

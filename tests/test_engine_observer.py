@@ -141,7 +141,7 @@ def test_a_platform_tilted_beyond_the_glitch_gate_recovers() -> None:
     imu = imu_stream(motion)
     fault = math.radians(15.0)
     samples = [
-        replace(s, w_ib_b=s.w_ib_b + np.array([fault, 0.0, 0.0]))
+        replace(s, w_ib_b=(s.w_ib_b[0] + fault, s.w_ib_b[1], s.w_ib_b[2]))
         if 40.0 <= motion_time(s.t) < 43.0
         else s
         for s in imu

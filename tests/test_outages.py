@@ -8,6 +8,7 @@ method) and as raw NAVGW_STATUS bytes.
 from __future__ import annotations
 
 import dataclasses
+import math
 from pathlib import Path
 
 import numpy as np
@@ -200,11 +201,9 @@ def test_a_saturated_imu_is_a_fault_at_once_then_the_engine_realigns(
     """Gyro x/y and accel z at full scale for 2 s (the fault table): before, the attitude
     went 179 deg wrong while STATUS said navigating for the first second."""
     span = (60.0, 62.0)
-    full = np.array([np.radians(300.0), -np.radians(300.0), 0.0])
+    full = (math.radians(300.0), -math.radians(300.0), 0.0)
     imu = [
-        dataclasses.replace(
-            s, w_ib_b=full, f_ib_b=np.array([0.0, 0.0, -8.0 * 9.80665]), saturated=True
-        )
+        dataclasses.replace(s, w_ib_b=full, f_ib_b=(0.0, 0.0, -8.0 * 9.80665), saturated=True)
         if span[0] <= motion_time(s.t) < span[1]
         else s
         for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)

@@ -95,7 +95,9 @@ def run_core(path: Path, seconds: float) -> FusionCore:
         writer.write_all(core.start(T0))
         for k in range(round(seconds / DT)):
             t = T0 + k * DT
-            sample = ImuSample(t=t, dt=DT, w_ib_b=np.zeros(3), f_ib_b=np.zeros(3), seq=k % 256)
+            sample = ImuSample(
+                t=t, dt=DT, w_ib_b=(0.0, 0.0, 0.0), f_ib_b=(0.0, 0.0, 0.0), seq=k % 256
+            )
             writer.write_all(core.on_imu(sample))
     return core
 

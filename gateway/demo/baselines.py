@@ -144,7 +144,9 @@ class AhrsEngine(_TiltSwapEngine):
                 roll, pitch = roll_pitch_from_specific_force(self._align_f / self._align_n)
                 self._q = _quaternion_from_dcm(dcm_from_rpy(roll, pitch, 0.0))
             return
-        self._q = self._filter.updateIMU(self._q, sample.w_ib_b, -sample.f_ib_b, dt=sample.dt)
+        self._q = self._filter.updateIMU(
+            self._q, np.array(sample.w_ib_b), -np.array(sample.f_ib_b), dt=sample.dt
+        )
 
     def _tilt(self) -> tuple[float, float, Float3 | None] | None:
         if self._q is None:

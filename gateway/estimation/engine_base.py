@@ -12,7 +12,7 @@ from collections import deque
 from collections.abc import Iterator
 from typing import Any, Protocol
 
-from drivers.samples import GnssFix, ImuSample
+from drivers.samples import Float3, GnssFix, ImuSample
 from drivers.units import GRAVITY_MPS2
 from gateway.estimation.solution import ImuTiming
 
@@ -86,12 +86,12 @@ class ImuHealth:
         self.bad_since_s: float | None = None  # start of the current run of unusable samples
         self._bad_for_s = 0.0
 
-    def accept(self, sample: ImuSample) -> tuple[float, list[float], list[float]] | None:
+    def accept(self, sample: ImuSample) -> tuple[float, Float3, Float3] | None:
         """(dt, w_ib_b, f_ib_b) to integrate, or None for a sample to skip (not finite)."""
         t = sample.t
         dt = self.timing.step(sample)
-        w = sample.w_ib_b.tolist()
-        f = sample.f_ib_b.tolist()
+        w = sample.w_ib_b
+        f = sample.f_ib_b
         if not (dt > 0.0 and math.isfinite(w[0] + w[1] + w[2] + f[0] + f[1] + f[2] + t)):
             self._mark_bad(t)
             return None

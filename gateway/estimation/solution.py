@@ -13,9 +13,7 @@ from typing import Protocol
 
 import numpy as np
 
-from drivers.samples import FixQuality, GnssFix, ImuSample
-
-Float3 = tuple[float, float, float]
+from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
 
 
 class Mode(IntEnum):

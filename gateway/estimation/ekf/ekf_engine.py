@@ -39,7 +39,7 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.log_limit import LogLimiter
-from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix, ImuSample
+from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, Float3, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 from gateway.estimation.attitude import (
     cross3,
@@ -218,7 +218,7 @@ class EkfEngine:
             self._fix_err_ned_m *= decay
             predict(self._p, transition_matrix(t_s, dv_f, c_dt, decay), self._q_c, t_s)
 
-    def _align_tilt(self, t: float, w: list[float], f: list[float]) -> None:
+    def _align_tilt(self, t: float, w: Float3, f: Float3) -> None:
         """Roll/pitch from the mean specific force of a quiet window; gyro bias if at rest.
 
         Quiet = |w| below ``align_quiet_rate_dps`` and, once GNSS speaks, speed below

@@ -25,7 +25,7 @@ from typing import Literal
 import numpy as np
 
 from drivers.log_limit import LogLimiter
-from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, GnssFix, ImuSample
+from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, Float3, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, SQRT_SECONDS_PER_HOUR, wrap_pi
 from gateway.estimation.attitude import (
     Mat9,
@@ -195,7 +195,7 @@ class ObserverEngine:
             return
         if self._control_until_s is not None and t > self._control_until_s:
             self._end_control()
-        fpn, fpe, fpd = obs.propagate((w[0], w[1], w[2]), (f[0], f[1], f[2]), dt)
+        fpn, fpe, fpd = obs.propagate(w, f, dt)
         c = obs.c_bp9
         if self._coasting:
             self._coast_on_the_ground(fpn, fpe, fpd, dt, c, obs.w_b_rps)
@@ -281,7 +281,7 @@ class ObserverEngine:
             v[i] = c[3 * i] * u
             p[i] += v[i] * dt
 
-    def _align_tilt(self, t: float, w: list[float], f: list[float]) -> None:
+    def _align_tilt(self, t: float, w: Float3, f: Float3) -> None:
         """Roll/pitch from the mean specific force over a quiet window, yaw 0 until COG/HDT.
 
         Quiet = |mean w| over the window below ``align_quiet_rate_dps`` (still, or straight
