@@ -10,7 +10,6 @@ endings; and the IMU decoder fed those records gives what it gives fed the messa
 from __future__ import annotations
 
 import io
-import logging
 from pathlib import Path
 
 import numpy as np
@@ -23,7 +22,7 @@ from drivers.logs import candump as canlog
 from drivers.logs.candump import CandumpReader, format_candump_line, read_candump
 from sim_bus.adis16334 import Adis16334Config, simulate
 from sim_bus.imu_frames import frames
-from tests.test_canlog import HEXDIGITS, ListHandler, careful_read, hex_text, lines, slots
+from tests.test_canlog import HEXDIGITS, careful_read, hex_text, lines, reader_result, slots
 
 #: Characters a mutation puts into a line of the common layout: each kind a check must catch.
 ODD_CHARS = "0 9aF?.#()-_+\t\r\x00\u00e9\u0661\u00b2\ufffd"
@@ -52,21 +51,6 @@ def layout_lines(draw: st.DrawFn) -> list[str]:
             line = line[:at] + draw(st.sampled_from(ODD_CHARS)) + line[at + 1 :]
         out.append(line)
     return out
-
-
-def reader_result(text: str) -> tuple[list[tuple | None], int, int, list[str]]:
-    """The reader's messages (as slots), frames, bad lines and warnings on ``text``."""
-    stream = io.StringIO(text)
-    stream.name = "gen.log"
-    reader = CandumpReader(stream)
-    logger = logging.getLogger(canlog.__name__)
-    handler = ListHandler()
-    logger.addHandler(handler)
-    try:
-        got = [slots(m) for m in reader]
-    finally:
-        logger.removeHandler(handler)
-    return got, reader.frames, reader.bad_lines, [r.getMessage() for r in handler.records]
 
 
 BLOCKS = settings(max_examples=150, deadline=None, suppress_health_check=[HealthCheck.too_slow])

@@ -362,13 +362,8 @@ def careful_read(text: str, name: str) -> tuple[list[tuple | None], int, list[st
     return msgs, bad, warnings
 
 
-@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
-@given(st.lists(lines(), max_size=20))
-def test_reader_gives_the_frames_counts_and_warnings_of_the_careful_loop(
-    line_list: list[str],
-) -> None:
-    text = "".join(line if line.endswith("\n") else line + "\n" for line in line_list)
-    text = text.replace("²", "2")  # its ValueError would end both reads: tested line by line
+def reader_result(text: str) -> tuple[list[tuple | None], int, int, list[str]]:
+    """The reader's messages (as slots), frames, bad lines and warnings on ``text``."""
     stream = io.StringIO(text)
     stream.name = "gen.log"
     reader = CandumpReader(stream)
@@ -379,10 +374,18 @@ def test_reader_gives_the_frames_counts_and_warnings_of_the_careful_loop(
         got = [slots(m) for m in reader]
     finally:
         logger.removeHandler(handler)
+    return got, reader.frames, reader.bad_lines, [r.getMessage() for r in handler.records]
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(st.lists(lines(), max_size=20))
+def test_reader_gives_the_frames_counts_and_warnings_of_the_careful_loop(
+    line_list: list[str],
+) -> None:
+    text = "".join(line if line.endswith("\n") else line + "\n" for line in line_list)
+    text = text.replace("²", "2")  # its ValueError would end both reads: tested line by line
     msgs, bad, warnings = careful_read(text, "gen.log")
-    assert got == msgs
-    assert (reader.frames, reader.bad_lines) == (len(msgs), bad)
-    assert [r.getMessage() for r in handler.records] == warnings
+    assert reader_result(text) == (msgs, len(msgs), bad, warnings)
 
 
 def test_reader_on_a_file_counts_lines_like_the_careful_loop(tmp_path: Path) -> None:
