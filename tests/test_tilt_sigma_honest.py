@@ -1,0 +1,90 @@
+"""The roll/pitch accuracy the EKF sends (NAVGW_STATUS byte 7) is honest: the attitude sent
+is within it.
+
+A cold start on a 6-8 deg slope (scenario ``slope-start``, three seeds), through ``navgw
+replay``; the attitude (127257) decoded by the independent ``nmea2000`` package, the stated
+1-sigma by cantools with the project's DBC, each 127257 frame paired with the last
+NAVGW_STATUS before it. Per frame the larger of the roll and pitch errors: for a true
+Gaussian 1-sigma about 9 % of such frames lie beyond 2 sigma and 0.5 % beyond 3 sigma;
+asserted: under 30 % and 1 %.
+
+The observer is not held to it yet: its accelerometer-bias sigma falls 2-3 times faster
+than its bias error in turns (the learning exponent of eq. 12 leaves out the tilt loop's
+lag, a factor 1 / (1 + (w_z tau)^2)), so on seed 21 it states 0.09 deg while 0.3-0.4 deg
+off: 46 % of the frames beyond 2 sigma, 9 % beyond 3 (issue 16; the fix reaches navgw
+calibrate, which gates on the same convergence).
+"""
+
+from __future__ import annotations
+
+import bisect
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import dbc
+from drivers.logs.candump import read_candump
+from gateway.config.gateway_config import Engine, load_config
+from gateway.offline.log_replay import replay
+from sim_bus.scenarios import SCENARIOS, SimRun, generate
+from sim_bus.truth import Truth
+from tests.n2k_check import decode_log
+
+
+@pytest.fixture(scope="module", params=[5, 21, 34])
+def slope_start(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> SimRun:
+    """The run of one seed."""
+    return generate(SCENARIOS["slope-start"], tmp_path_factory.mktemp("sigma"), seed=request.param)
+
+
+def stated_sigma_deg(log: Path) -> list[tuple[float, float | None]]:
+    """(time, SIGMA_TILT deg or None when not available) of every NAVGW_STATUS frame."""
+    status = dbc.load(dbc.OUTPUT_DBC).get_message_by_name("NAVGW_STATUS")
+    pgn = (status.frame_id >> 8) & 0x3FFFF
+    out = []
+    for frame in read_candump(log):
+        if (frame.arbitration_id >> 8) & 0x3FFFF == pgn:
+            values = status.decode(bytes(frame.data), decode_choices=False)
+            assert isinstance(values, dict)
+            sigma = values["SIGMA_TILT"]
+            out.append((float(frame.timestamp), sigma if isinstance(sigma, float) else None))
+    return out
+
+
+def error_over_sigma(log: Path, truth: Truth) -> np.ndarray:
+    """Per 127257 frame with roll and pitch: max(|roll error|, |pitch error|) over the 1-sigma
+    stated by the NAVGW_STATUS frame last sent before it."""
+    status = stated_sigma_deg(log)
+    times = [t for t, _ in status]
+    ratios = []
+    for m in decode_log(log):
+        if m.id != "attitude" or m.fields.get("roll") is None or m.fields.get("pitch") is None:
+            continue
+        i = bisect.bisect_right(times, m.t) - 1
+        sigma = status[i][1] if i >= 0 else None
+        assert sigma is not None, f"roll/pitch sent at t={m.t:.3f} without a stated accuracy"
+        true = [np.interp(m.t, truth.t, truth.rpy_rad[:, k]) for k in range(2)]
+        est = [float(m.fields["roll"]), float(m.fields["pitch"])]  # type: ignore[arg-type]
+        error_deg = np.degrees(np.max(np.abs(np.subtract(est, true))))
+        ratios.append(error_deg / sigma)
+    return np.array(ratios)
+
+
+def test_ekf_roll_and_pitch_stay_within_their_stated_accuracy_from_a_cold_start_on_a_slope(
+    slope_start: SimRun, tmp_path: Path
+) -> None:
+    out = tmp_path / "out.log"
+    replay(
+        slope_start.imu_log,
+        slope_start.gnss_log,
+        out,
+        load_config(slope_start.config_file).with_engine(Engine.EKF),
+    )
+    ratios = error_over_sigma(out, Truth.load(slope_start.truth_file))
+    assert len(ratios) > 5000  # most of the run's 50 Hz attitude frames
+    beyond_2, beyond_3 = np.mean(ratios > 2.0), np.mean(ratios > 3.0)
+    # the EKF's P is somewhat optimistic in the first minutes on a slope: 25 % beyond 2 sigma
+    # (seed 21), still 0.4 % beyond 3
+    assert beyond_2 < 0.3, f"{beyond_2:.1%} of the frames beyond 2 sigma"
+    assert beyond_3 < 0.01, f"{beyond_3:.2%} of the frames beyond 3 sigma"
