@@ -13,7 +13,9 @@ IMU's. The body's are on the ground:
   other way the body's roll is opposite and the mounting's is not: the mean of the engine's
   roll both ways over the same cells of ground is the mounting's roll.
 
-Only epochs where the engine navigates with its accelerometer biases learnt count. Running
+Only epochs where the engine navigates with its accelerometer biases learnt count: its
+convergence flag, or its stated roll/pitch 1-sigma within ``max_tilt_sigma_deg`` (what a
+determined axis may have; the accelerometer bias over g is part of it). Running
 sums, but for the cells: a bounded map (``MAX_CELLS``) of ``cell_m`` squares around the
 first position.
 """
@@ -109,12 +111,14 @@ class InsTilt:
         cell_m: float = 4.0,
         min_speed_mps: float = 1.0,
         fix_qualities: tuple[int, ...] = (FixQuality.RTK_FIXED,),
+        max_tilt_sigma_deg: float = 0.15,
     ) -> None:
         self.engine = engine
         self.l_ant = antenna_lever_arm_m
         self.cell_m = cell_m
         self.min_speed_mps = min_speed_mps
         self.fix_qualities = fix_qualities
+        self.max_tilt_sigma_rad = math.radians(max_tilt_sigma_deg)
         self.learnt = False  # the engine's accelerometer biases converged at some point
         self.sigma_tilt_rad = math.inf  # the engine's own roll/pitch 1-sigma, last
         self._origin: tuple[float, float] | None = None
@@ -143,7 +147,9 @@ class InsTilt:
             and fix.sog_mps >= self.min_speed_mps
             and fix.alt_m is not None
         )
-        learnt = sol.convergence.accel_xy
+        learnt = sol.convergence.accel_xy or (
+            sol.sigma_tilt_rad is not None and sol.sigma_tilt_rad <= self.max_tilt_sigma_rad
+        )
         if learnt and sol.sigma_tilt_rad is not None:
             self.learnt = True
             self.sigma_tilt_rad = sol.sigma_tilt_rad

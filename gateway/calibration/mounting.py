@@ -106,7 +106,10 @@ class MountingEstimator:
         self.turns = TurnAxisFit(cfg.gyro_window_s)
         self.work = WorkWindows(obs.antenna_lever_arm_m, obs.imu_lever_arm_m, cfg.work_window_s)
         self.forward = ForwardAxisFit()
-        self.tilt = InsTilt(ObserverEngine(obs), obs.antenna_lever_arm_m, cfg.cell_m)
+        self.tilt = InsTilt(
+            ObserverEngine(obs), obs.antenna_lever_arm_m, cfg.cell_m,
+            max_tilt_sigma_deg=cfg.max_sigma_deg,
+        )  # fmt: skip
 
     def imu(self, sample: ImuSample) -> None:
         """One IMU sample (in the axes of the configured mounting)."""

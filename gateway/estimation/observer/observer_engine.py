@@ -164,7 +164,7 @@ class ObserverEngine:
         # learning gates and convergence bookkeeping
         self._learn_ok_since_s: float | None = None
         self._g_learn = 0.0  # integral of dt / tau_g while learning
-        self._a_learn = 0.0  # integral of w_z^2 / omega_a dt while learning
+        self._a_learn = 0.0  # integral of w_z^2 / (omega_a (1 + (w_z tau)^2)) dt while learning
         self._e_var_mps4 = 0.0  # running variance of one horizontal e component
         self._epoch_interval_s = 0.1  # last closed-loop GNSS interval
         self._t_last_epoch_s: float | None = None
@@ -666,8 +666,14 @@ class ObserverEngine:
     def _update_gates(self, t_e: float, ok: bool) -> None:
         """Bias learning on only after all gates have been open for ``learning_holdoff_s``.
 
-        Also accumulates the convergence exponents: t / tau_g (gyro x/y) and
-        integral of w_z^2 / omega_a (accelerometer x/y: its loop gain, eqs. 10 and 12).
+        Also accumulates the convergence exponents: t / tau_g (gyro x/y) and the integral
+        of w_z^2 / (omega_a (1 + (w_z tau)^2)) (accelerometer x/y). Eq. (12) learns from the
+        control rate, and in a turn the bias error turns with the body at w_z: the tilt loop
+        (first order, tau) follows the tilt it causes with a lag, and only the quadrature
+        part of its response, w_z / (1 + (w_z tau)^2), moves the estimate towards the truth.
+        The paper's rate w_z^2 / omega_a is the limit w_z tau << 1; with it the stated sigma
+        fell 2-3 times faster than the bias error (slope-start seed 21: 0.09 deg of tilt
+        stated while 0.3-0.4 deg off, 9 % of the attitude frames beyond 3 sigma; now none).
         """
         obs = self._observer
         assert obs is not None
@@ -675,7 +681,9 @@ class ObserverEngine:
         self._t_last_epoch_s = t_e
         if obs.learn and 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
             self._g_learn += interval_s / self.cfg.tau_g_s
-            self._a_learn += obs.w_b_rps[2] ** 2 * interval_s / (self.cfg.omega_a_dps * DEG_TO_RAD)
+            wz = obs.w_b_rps[2]
+            omega_a = self.cfg.omega_a_dps * DEG_TO_RAD
+            self._a_learn += wz * wz * interval_s / (omega_a * (1.0 + (wz * self.cfg.tau_s) ** 2))
         if not (ok and self.cfg.estimate_biases):
             self._learn_ok_since_s = None
             obs.learn = False
