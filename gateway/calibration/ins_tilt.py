@@ -111,7 +111,8 @@ class InsTilt:
         cell_m: float = 4.0,
         min_speed_mps: float = 1.0,
         fix_qualities: tuple[int, ...] = (FixQuality.RTK_FIXED,),
-        max_tilt_sigma_deg: float = 0.15,
+        *,
+        max_tilt_sigma_deg: float,
     ) -> None:
         self.engine = engine
         self.l_ant = antenna_lever_arm_m
