@@ -3,7 +3,8 @@
 Conventions (ALGORITHMS.md): body FRD, navigation NED, ``c_bn`` maps body vectors to NED,
 Euler angles are ZYX (yaw about down, then pitch, then roll), yaw clockwise from true north.
 These numpy helpers serve alignment, tests and once-per-epoch work; the per-sample hot path of
-the observer uses the unrolled float forms :func:`exp_so3_2nd` and :func:`dcm_mul`.
+the observer uses the unrolled float forms :func:`exp_so3_2nd`, :func:`exp_so3_9` and
+:func:`dcm_mul`.
 """
 
 from __future__ import annotations
@@ -33,23 +34,29 @@ def cross3(a: npt.ArrayLike, b: npt.ArrayLike) -> Array:
     return np.array((a1 * b2 - a2 * b1, a2 * b0 - a0 * b2, a0 * b1 - a1 * b0))
 
 
-_I3 = np.eye(3)
-_I3.flags.writeable = False
-
-
 def exp_so3(phi: npt.ArrayLike) -> Array:
-    """Rotation matrix exp([phi]x), shape (3, 3), by Rodrigues' formula (exact).
+    """Rotation matrix exp([phi]x), shape (3, 3), by Rodrigues' formula (exact):
+    :func:`exp_so3_9` as an array."""
+    x, y, z = np.asarray(phi, dtype=float).ravel().tolist()
+    return np.array(exp_so3_9(x, y, z)).reshape(3, 3)
 
-    The angle is ``np.linalg.norm``'s own sqrt(phi . phi) and the K^2 term ``(b K) @ K``, in
-    numpy, so the result is the same bits as ever; the rest skips numpy's per-call overhead.
-    """
-    a = np.asarray(phi, dtype=float)
-    x, y, z = a.tolist()
-    angle = math.sqrt(a.dot(a))
-    k = np.array(((0.0, -z, y), (z, 0.0, -x), (-y, x, 0.0)))
+
+def exp_so3_9(x: float, y: float, z: float) -> Mat9:
+    """exp([phi]x) of phi = (x, y, z) rad as 9 row-major floats, by Rodrigues' formula
+    I + a K + b K^2 (a = sin(t) / t, b = (1 - cos(t)) / t^2, t = |phi|; the series to second
+    order below 1e-8 rad), in plain floats: the per-epoch rotations need no numpy."""
+    xx, yy, zz, xy, xz, yz = x * x, y * y, z * z, x * y, x * z, y * z
+    angle = math.sqrt(xx + yy + zz)
     if angle < 1e-8:
-        return _I3 + k + 0.5 * k @ k
-    return _I3 + math.sin(angle) / angle * k + (1.0 - math.cos(angle)) / angle**2 * k @ k
+        a, b = 1.0, 0.5
+    else:
+        a, b = math.sin(angle) / angle, (1.0 - math.cos(angle)) / (angle * angle)
+    # K^2 = phi phi^T - |phi|^2 I
+    return (
+        1.0 - b * (yy + zz), b * xy - a * z, b * xz + a * y,
+        b * xy + a * z, 1.0 - b * (xx + zz), b * yz - a * x,
+        b * xz - a * y, b * yz + a * x, 1.0 - b * (xx + yy),
+    )  # fmt: skip
 
 
 def dcm_from_rpy_array(rpy_rad: npt.ArrayLike) -> Array:

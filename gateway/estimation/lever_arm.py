@@ -2,51 +2,72 @@
 
 A point P fixed on the body at ``lever_arm_b`` (body FRD, metres, relative to the vehicle
 reference point R) has position p_P = p_R + C_b^n l and velocity v_P = v_R + C_b^n (w_b x l).
-Full 3-D rotation, no lateral-only h*sin(roll) shortcut. Per-epoch code (numpy is fine here).
+Full 3-D rotation, no lateral-only h*sin(roll) shortcut. Plain floats: the observer runs
+these every GNSS epoch, where numpy's per-call cost was most of the work. ``c_bn`` is C_b^n
+as 9 row-major floats (:data:`~gateway.estimation.attitude.Mat9`) or a (3, 3) array.
 """
 
 from __future__ import annotations
 
-import numpy as np
+from collections.abc import Sequence
+
 import numpy.typing as npt
 
-from gateway.estimation.attitude import cross3
+from gateway.estimation.attitude import Mat9, to_mat9
 
-Array = npt.NDArray[np.float64]
-
-
-def lever_arm_position_ned(c_bn: npt.ArrayLike, lever_arm_b: npt.ArrayLike) -> Array:
-    """C_b^n l, shape (3,): NED offset of a body point from the reference point, m."""
-    return np.asarray(c_bn, dtype=float) @ np.asarray(lever_arm_b, dtype=float)
+Vec3 = tuple[float, float, float]
 
 
-def lever_arm_velocity_ned(
-    c_bn: npt.ArrayLike, w_b_rps: npt.ArrayLike, lever_arm_b: npt.ArrayLike
-) -> Array:
-    """C_b^n (w_b x l), shape (3,): velocity of a body point relative to the reference, m/s."""
-    return np.asarray(c_bn, dtype=float) @ cross3(
-        np.asarray(w_b_rps, dtype=float), np.asarray(lever_arm_b, dtype=float)
+def _mat9(c_bn: Mat9 | npt.ArrayLike) -> Mat9:
+    return c_bn if isinstance(c_bn, tuple) else to_mat9(c_bn)
+
+
+def _rotate(c: Mat9, x: float, y: float, z: float) -> Vec3:
+    return (
+        c[0] * x + c[1] * y + c[2] * z,
+        c[3] * x + c[4] * y + c[5] * z,
+        c[6] * x + c[7] * y + c[8] * z,
     )
 
 
+def lever_arm_position_ned(c_bn: Mat9 | npt.ArrayLike, lever_arm_b: Sequence[float]) -> Vec3:
+    """C_b^n l: NED offset of a body point from the reference point, m."""
+    lx, ly, lz = lever_arm_b
+    return _rotate(_mat9(c_bn), lx, ly, lz)
+
+
+def lever_arm_velocity_ned(
+    c_bn: Mat9 | npt.ArrayLike, w_b_rps: Sequence[float], lever_arm_b: Sequence[float]
+) -> Vec3:
+    """C_b^n (w_b x l): velocity of a body point relative to the reference, m/s."""
+    wx, wy, wz = w_b_rps
+    lx, ly, lz = lever_arm_b
+    return _rotate(_mat9(c_bn), wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx)
+
+
 def reference_from_antenna(
-    p_ant_ned_m: npt.ArrayLike, c_bn: npt.ArrayLike, lever_arm_ant_b: npt.ArrayLike
-) -> Array:
-    """Reference-point position p_ant - C_b^n l_ant, shape (3,), NED m."""
-    return np.asarray(p_ant_ned_m, dtype=float) - lever_arm_position_ned(c_bn, lever_arm_ant_b)
+    p_ant_ned_m: Sequence[float], c_bn: Mat9 | npt.ArrayLike, lever_arm_ant_b: Sequence[float]
+) -> Vec3:
+    """Reference-point position p_ant - C_b^n l_ant, NED m."""
+    dn, de, dd = lever_arm_position_ned(c_bn, lever_arm_ant_b)
+    pn, pe, pd = p_ant_ned_m
+    return (pn - dn, pe - de, pd - dd)
 
 
 def velocity_at(
-    v_src_ned_mps: npt.ArrayLike,
-    c_bn: npt.ArrayLike,
-    w_b_rps: npt.ArrayLike,
-    lever_arm_src_b: npt.ArrayLike,
-    lever_arm_dst_b: npt.ArrayLike,
-) -> Array:
+    v_src_ned_mps: Sequence[float],
+    c_bn: Mat9 | npt.ArrayLike,
+    w_b_rps: Sequence[float],
+    lever_arm_src_b: Sequence[float],
+    lever_arm_dst_b: Sequence[float],
+) -> Vec3:
     """Velocity of body point ``dst`` from the measured velocity of body point ``src``.
 
-    v_dst = v_src + C_b^n (w_b x (l_dst - l_src)), shape (3,). Used to move the antenna
-    velocity to the reference point (heading, output) and to the IMU (tilt observer).
+    v_dst = v_src + C_b^n (w_b x (l_dst - l_src)). Used to move the antenna velocity to the
+    reference point (heading, output) and to the IMU (tilt observer).
     """
-    dl = np.asarray(lever_arm_dst_b, dtype=float) - np.asarray(lever_arm_src_b, dtype=float)
-    return np.asarray(v_src_ned_mps, dtype=float) + lever_arm_velocity_ned(c_bn, w_b_rps, dl)
+    dx, dy, dz = lever_arm_dst_b
+    sx, sy, sz = lever_arm_src_b
+    vn, ve, vd = lever_arm_velocity_ned(c_bn, w_b_rps, (dx - sx, dy - sy, dz - sz))
+    un, ue, ud = v_src_ned_mps
+    return (un + vn, ue + ve, ud + vd)

@@ -22,15 +22,14 @@ from dataclasses import dataclass
 from operator import itemgetter
 from typing import Literal
 
-import numpy as np
-
 from drivers.log_limit import LogLimiter
 from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, Float3, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, SQRT_SECONDS_PER_HOUR, wrap_pi
 from gateway.estimation.attitude import (
     Mat9,
     dcm_from_rpy,
-    exp_so3,
+    dcm_mul,
+    exp_so3_9,
     roll_pitch_from_specific_force,
     rpy_from_mat9,
 )
@@ -118,8 +117,7 @@ class ObserverEngine:
         of the host clock across a restart), else a new one from ``config``."""
         cfg = config if config is not None else ObserverConfig()
         self.cfg = cfg
-        self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
-        self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
+        self._l_ant_f = tuple(float(x) for x in cfg.antenna_lever_arm_m)
         self._heading = HeadingChannel(cfg)
         self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._observer: TereshkovObserver | None = None
@@ -400,7 +398,7 @@ class ObserverEngine:
         obs = self._observer
         assert obs is not None
         row = self._history_at(t_e)
-        c_bn = obs.c_bp
+        c_bn = obs.c_bp9
         vel = self._velocity_ne(fix)
         if vel is None or row is None:
             self._prev_epoch = None
@@ -413,8 +411,8 @@ class ObserverEngine:
         w_lever = self._mean_rate(t_e - half, self._history_at(t_e + half) or row)
         w_still = self._mean_rate(t_e - STATIONARY_RATE_WINDOW_S, row)
         c_e = self._attitude_at(row, c_bn)
-        v_ref = velocity_at(v_ant, c_e, w_lever, self._l_ant_b, np.zeros(3))
-        v_imu = velocity_at(v_ant, c_e, w_lever, self._l_ant_b, self._l_imu_b)
+        v_ref = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, (0.0, 0.0, 0.0))
+        v_imu = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, self._l_imu_f)
         speed_ref = math.hypot(v_ref[0], v_ref[1])
         self._t_vel_rx_s = fix.t
         self._coasting = False
@@ -423,9 +421,9 @@ class ObserverEngine:
         # must not keep the loop open: 0.5 deg/s per axis tilts 2 deg in 4 s open loop)
         self._at_rest = speed_ref < self.cfg.stationary_speed_mps
         rate_limit = self.cfg.stationary_rate_dps * DEG_TO_RAD + 3.0 * self._sigma_bg_rps()
-        self._stationary = self._at_rest and float(np.linalg.norm(w_still)) < rate_limit
+        self._stationary = self._at_rest and math.hypot(*w_still) < rate_limit
         self._hold_control(t_e)
-        glitch = self._correct_tilt(t_e, float(v_imu[0]), float(v_imu[1]), row)
+        glitch = self._correct_tilt(t_e, v_imu[0], v_imu[1], row)
         # Learning goes on at rest: the tilt loop is closed there too (v = 0 is the best
         # velocity reference there is), the control rate still equals the x/y gyro bias
         # (eq. 15), and eq. (12) moves no accelerometer bias without a yaw rate. Freezing it
@@ -442,14 +440,10 @@ class ObserverEngine:
         self._zero_rate_update(t_e, row)
         self._imu.upset = False
         cog_ref = math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
-        yaw_rate = float(c_bn[2] @ w_still)
-        self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn)
-        self._lever_v_ned_mps = (
-            float(v_imu[0] - v_ref[0]),
-            float(v_imu[1] - v_ref[1]),
-            float(v_imu[2] - v_ref[2]),
-        )
-        self._correct_position(fix, t_e, row, c_e, (float(v_ref[0]), float(v_ref[1])))
+        yaw_rate = c_bn[6] * w_still[0] + c_bn[7] * w_still[1] + c_bn[8] * w_still[2]
+        self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn[8])
+        self._lever_v_ned_mps = (v_imu[0] - v_ref[0], v_imu[1] - v_ref[1], v_imu[2] - v_ref[2])
+        self._correct_position(fix, t_e, row, c_e, (v_ref[0], v_ref[1]))
 
     def _hold_control(self, t_e: float) -> None:
         """The control rates this epoch sets are meant for one epoch period (time since the
@@ -544,21 +538,28 @@ class ObserverEngine:
             a8 + u * (b8 - a8),
         )
 
-    def _attitude_at(self, row: _Row, c_bn: np.ndarray) -> np.ndarray:
+    def _attitude_at(self, row: _Row, c_bn: Mat9) -> Mat9:
         """C_b^n at the time of ``row``: the current C turned back by the body rotation since
         (integral of w_b from the history; the platform control rate is negligible over the
         ~0.1 s of receiver latency). A bump rolls the mast by ~0.5 deg in 70 ms."""
         last = self._hist[-1]
-        return c_bn @ exp_so3(
-            (row[_WI_X] - last[_WI_X], row[_WI_Y] - last[_WI_Y], row[_WI_Z] - last[_WI_Z])
+        return dcm_mul(
+            c_bn,
+            exp_so3_9(row[_WI_X] - last[_WI_X], row[_WI_Y] - last[_WI_Y], row[_WI_Z] - last[_WI_Z]),
         )
 
-    def _mean_rate(self, t0_s: float, row: _Row) -> np.ndarray:
-        """Mean bias-corrected body rate (3,) over [t0_s, row time], from the history."""
+    def _mean_rate(self, t0_s: float, row: _Row) -> Float3:
+        """Mean bias-corrected body rate over [t0_s, row time], from the history, rad/s."""
         row0 = self._history_at(t0_s)
         if row0 is None or row[_T] <= row0[_T]:
-            return np.array(self._observer.w_b_rps if self._observer is not None else (0, 0, 0.0))
-        return (np.array(row[_WI]) - np.array(row0[_WI])) / (row[_T] - row0[_T])
+            obs = self._observer
+            return obs.w_b_rps if obs is not None else (0.0, 0.0, 0.0)
+        span = row[_T] - row0[_T]
+        return (
+            (row[_WI_X] - row0[_WI_X]) / span,
+            (row[_WI_Y] - row0[_WI_Y]) / span,
+            (row[_WI_Z] - row0[_WI_Z]) / span,
+        )
 
     def _correct_tilt(self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row) -> bool:
         """Eq. (3) over exactly the GNSS interval; returns True for a glitch.
@@ -700,7 +701,7 @@ class ObserverEngine:
         speed_ref_mps: float,
         hdt_rad: float | None,
         yaw_rate_rps: float,
-        c_bn: np.ndarray,
+        c_bn_dd: float,
     ) -> None:
         """First heading alignment, then the heading channel (ALGORITHMS.md 2).
 
@@ -725,7 +726,7 @@ class ObserverEngine:
         ref = self._heading.select_reference(
             t_e, row[_PSI], cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
         )
-        corr = self._heading.correct(t_e, row[_PSI], ref, row[_HC], float(c_bn[2, 2]), obs.learn)
+        corr = self._heading.correct(t_e, row[_PSI], ref, row[_HC], c_bn_dd, obs.learn)
         if corr.step_rad:
             obs.rotate_about_vertical(corr.step_rad)
         self._w_pz_rps = corr.w_pz_rps
@@ -737,7 +738,7 @@ class ObserverEngine:
         fix: GnssFix,
         t_e: float,
         row: _Row | None,
-        c_bn: np.ndarray,
+        c_bn: Mat9,
         v_ref_ne: tuple[float, float] | None,
     ) -> None:
         """Reference point = antenna - C l_ant (full 3-D), weighed into the propagated state.
@@ -762,11 +763,9 @@ class ObserverEngine:
             return
         if self._frame is None:
             self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
-        p_ant = np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
-        self._track.add(
-            t_e, (float(p_ant[0]), float(p_ant[1])), fix.vel_ne_mps, fix.horizontal_sigma_m
-        )
-        p_ref = reference_from_antenna(p_ant, c_bn, self._l_ant_b)
+        p_ant = self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m)
+        self._track.add(t_e, (p_ant[0], p_ant[1]), fix.vel_ne_mps, fix.horizontal_sigma_m)
+        p_ref = reference_from_antenna(p_ant, c_bn, self._l_ant_f)
         p, v, sf = self._p_ned_m, self._v_ned_mps, self._sf
         if row is None:
             if len(self._hist) == HISTORY_LEN:  # not an epoch from before the engine started
@@ -779,11 +778,7 @@ class ObserverEngine:
             age = self._t_s - t_e
             vn, ve = v_ref_ne if v_ref_ne is not None else (0.0, 0.0)
             self._v_ned_mps = [vn, ve, 0.0]
-            self._p_ned_m = [
-                float(p_ref[0] + vn * age),
-                float(p_ref[1] + ve * age),
-                float(p_ref[2]),
-            ]
+            self._p_ned_m = [p_ref[0] + vn * age, p_ref[1] + ve * age, p_ref[2]]
             channel.reset()
             self._nav_valid = True
             self._t_pos_epoch_s = self._t_position_s = t_e
@@ -794,7 +789,7 @@ class ObserverEngine:
             v[1] - (sf[1] - row[_SF_E]),
             v[2] - (sf[2] - row[_SF_D]) - GRAVITY_MPS2 * age,
         ]
-        dp = [float(p_ref[i]) - (p[i] - 0.5 * (v[i] + v_e[i]) * age) for i in range(3)]
+        dp = [p_ref[i] - (p[i] - 0.5 * (v[i] + v_e[i]) * age) for i in range(3)]
         self._predict_position(fix, t_e)
         interval_s = min(t_e - (self._t_pos_epoch_s or t_e), self.cfg.max_gnss_interval_s)
         verdict = self._gate_position(fix, t_e, dp)

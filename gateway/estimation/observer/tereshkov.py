@@ -31,8 +31,8 @@ from drivers.units import GRAVITY_MPS2
 from gateway.estimation.attitude import (
     Mat9,
     dcm_mul,
-    exp_so3,
     exp_so3_2nd,
+    exp_so3_9,
     from_mat9,
     orthonormalise,
     to_mat9,
@@ -91,7 +91,7 @@ class TereshkovObserver:
         w_p = self._w_p_rps
         if w_p[0] or w_p[1] or w_p[2]:
             if self._exp_w_p is None or dt != self._exp_dt:
-                self._exp_w_p = to_mat9(exp_so3((-w_p[0] * dt, -w_p[1] * dt, -w_p[2] * dt)))
+                self._exp_w_p = exp_so3_9(-w_p[0] * dt, -w_p[1] * dt, -w_p[2] * dt)
                 self._exp_dt = dt
             c = dcm_mul(self._exp_w_p, c)
         self._n_since_ortho += 1
@@ -132,7 +132,7 @@ class TereshkovObserver:
         if not (w_p[0] or w_p[1] or w_p[2]) or duration_s <= 0.0:
             return
         d = duration_s
-        self._c = dcm_mul(to_mat9(exp_so3((-w_p[0] * d, -w_p[1] * d, -w_p[2] * d))), self._c)
+        self._c = dcm_mul(exp_so3_9(-w_p[0] * d, -w_p[1] * d, -w_p[2] * d), self._c)
         if self.learn:
             self._learn(w_p, self.w_b_rps[2], d)
 
@@ -155,11 +155,11 @@ class TereshkovObserver:
 
     def rotate_about_vertical(self, dpsi_rad: float) -> None:
         """C <- Rz(dpsi) C: a direct heading change (alignment), tilt untouched."""
-        self._c = dcm_mul(to_mat9(exp_so3((0.0, 0.0, dpsi_rad))), self._c)
+        self._c = dcm_mul(exp_so3_9(0.0, 0.0, dpsi_rad), self._c)
 
     def rotate(self, phi_rad: Float3) -> None:
         """C <- exp([phi]x) C: a small rotation in the platform (NED) frame (a re-levelling)."""
-        self._c = dcm_mul(to_mat9(exp_so3(phi_rad)), self._c)
+        self._c = dcm_mul(exp_so3_9(*phi_rad), self._c)
 
     def set_biases(self, bg_rps: Float3, ba_mps2: Float3) -> None:
         """Both bias estimates at once (a warm start), used from the next sample on."""
