@@ -12,7 +12,7 @@ from collections import deque
 from collections.abc import Iterator
 from typing import Any, Protocol
 
-from drivers.samples import Float3, GnssFix, ImuSample
+from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
 from drivers.units import GRAVITY_MPS2
 from gateway.estimation.solution import ImuTiming
 
@@ -144,23 +144,32 @@ class HeldEpochs:
             yield epochs.popleft()
 
 
+#: :class:`Solution`'s fields of the receiver's last fix, in their order (:func:`fix_fields`).
+FIX_FIELDS = (
+    "fix_quality", "num_sats", "hdop", "age_s", "geoid_sep_m", "reference_station_id", "talker",
+)  # fmt: skip
+FixFields = tuple[FixQuality | None, int | None, float | None, float | None, float | None,
+                  int | None, str | None]  # fmt: skip
+_NO_FIX: FixFields = (None, None, None, None, None, None, None)
+
+
+def fix_fields(fix: GnssFix | None) -> FixFields:
+    """The receiver's last fix as every engine reports it, in the order of :data:`FIX_FIELDS`
+    (a tuple: the engines build a solution 50 times a second, positionally)."""
+    if fix is None:
+        return _NO_FIX
+    return (
+        fix.quality, fix.num_sats, fix.hdop, fix.age_s, fix.geoid_sep_m,
+        fix.reference_station_id, fix.talker,
+    )  # fmt: skip
+
+
 def common_fields(t: float | None, fix: GnssFix | None, imu: ImuHealth) -> dict[str, Any]:
-    """The :class:`Solution` fields every engine reports the same way: the receiver's last
-    fix and the IMU's state, at the time of the last IMU sample (0 before any). A dict for
-    ``Solution(**common, ...)``: a solution is built once (50 times a second), not replaced."""
-    common: dict[str, Any] = {
-        "t": t if t is not None else 0.0,
-        "imu_alarm": imu.alarm,
-        "imu_ok": t is not None and imu.ok,
-    }
-    if fix is not None:
-        common.update(
-            fix_quality=fix.quality,
-            num_sats=fix.num_sats,
-            hdop=fix.hdop,
-            age_s=fix.age_s,
-            geoid_sep_m=fix.geoid_sep_m,
-            reference_station_id=fix.reference_station_id,
-            talker=fix.talker,
-        )
+    """The :class:`Solution` fields every engine reports the same way, as keywords: the
+    receiver's last fix (:func:`fix_fields`) and the IMU's state, at the time of the last IMU
+    sample (0 before any)."""
+    common: dict[str, Any] = dict(zip(FIX_FIELDS, fix_fields(fix), strict=True))
+    common.update(
+        t=t if t is not None else 0.0, imu_alarm=imu.alarm, imu_ok=t is not None and imu.ok
+    )
     return common

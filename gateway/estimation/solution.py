@@ -9,9 +9,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 from enum import IntEnum
+from itertools import product
 from typing import Protocol
-
-import numpy as np
 
 from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
 
@@ -35,6 +34,17 @@ class Convergence:
     gyro_z: bool = False
     accel_xy: bool = False
     learning_frozen: bool = False
+
+
+#: Every Convergence there is (frozen: shared), by its flags in field order.
+_CONVERGENCE = {flags: Convergence(*flags) for flags in product((False, True), repeat=4)}
+
+
+def convergence_of(
+    gyro_xy: bool, gyro_z: bool, accel_xy: bool, learning_frozen: bool
+) -> Convergence:
+    """The Convergence of these flags (one of sixteen, not a new object 50 times a second)."""
+    return _CONVERGENCE[gyro_xy, gyro_z, accel_xy, learning_frozen]
 
 
 @dataclass(slots=True)
@@ -84,7 +94,7 @@ class Solution:
         if self.vel_ned_mps is None:
             return None
         vn, ve, _ = self.vel_ned_mps
-        return float(np.arctan2(ve, vn) % (2 * np.pi)), float(np.hypot(vn, ve))
+        return math.atan2(ve, vn) % (2.0 * math.pi), math.hypot(vn, ve)
 
 
 #: An IMU sample stands for at most this long (the samples lost before it included) without

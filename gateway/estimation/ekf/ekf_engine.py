@@ -77,6 +77,7 @@ from gateway.estimation.engine_base import (
     ImuHealth,
     common_fields,
     dead_reckoning_output,
+    fix_fields,
     levelling_correction,
 )
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
@@ -90,6 +91,7 @@ from gateway.estimation.solution import (
     LearnedState,
     Mode,
     Solution,
+    convergence_of,
     navigation_mode,
 )
 
@@ -732,77 +734,90 @@ class EkfEngine:
 
     def reference_state(self) -> tuple[Array, Array, Array] | None:
         """Reference point NED position (3,), velocity (3,) and C_bn (3, 3); None if unknown."""
+        ref = self._reference_point()
+        if ref is None:
+            return None
+        assert self._ins is not None
+        return np.array(ref[0]), np.array(ref[1]), self._ins.c_bn
+
+    def _reference_point(self) -> tuple[Float3, Float3] | None:
+        """Reference point NED position and velocity, p - C l_imu and v - C (w x l_imu), in
+        plain floats (50 times a second); None if unknown."""
         ins = self._ins
         if ins is None or self._p is None:
             return None
-        c_bn = ins.c_bn
+        c = ins.c_bn9
         wx, wy, wz = ins.w_b_lp_rps
         lx, ly, lz = self._l_imu_b_f
-        w_x_l = np.array((wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx))  # np.cross
-        p_ref = np.array(ins.p_ned_m) - c_bn @ self._l_imu_b
-        v_ref = np.array(ins.v_ned_mps) - c_bn @ w_x_l
-        return p_ref, v_ref, c_bn
+        ux, uy, uz = wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx  # w x l
+        p, v = ins.p_ned_m, ins.v_ned_mps
+        return (
+            (
+                p[0] - (c[0] * lx + c[1] * ly + c[2] * lz),
+                p[1] - (c[3] * lx + c[4] * ly + c[5] * lz),
+                p[2] - (c[6] * lx + c[7] * ly + c[8] * lz),
+            ),
+            (
+                v[0] - (c[0] * ux + c[1] * uy + c[2] * uz),
+                v[1] - (c[3] * ux + c[4] * uy + c[5] * uz),
+                v[2] - (c[6] * ux + c[7] * uy + c[8] * uz),
+            ),
+        )
 
     def solution(self) -> Solution:
         """The current solution at the time of the last IMU sample."""
         fix = self._last_fix
-        common = common_fields(self._t_s, fix, self._imu)
         ins = self._ins
         if ins is None:
-            return Solution(mode=Mode.INITIALISING, is_ekf=True, **common)
+            return Solution(
+                mode=Mode.INITIALISING, is_ekf=True, **common_fields(self._t_s, fix, self._imu)
+            )
         c9 = ins.c_bn9
         roll, pitch, yaw = rpy_from_mat9(c9)
         w_b = ins.w_b_lp_rps
         coasting_s = self._coasting_s()
         send, within = self._dead_reckoning_output(coasting_s)
         mode = self._mode(coasting_s, within)
-        nav = self.reference_state() if send else None  # (None until P, i.e. a frame, exists)
+        nav = self._reference_point() if send else None  # (None until P, i.e. a frame, exists)
         lat = lon = alt = None
         vel = None
         if nav is not None and self._frame is not None:
-            lat, lon, alt = self._frame.to_lla(*nav[0].tolist())
-            vx, vy, vz = nav[1].tolist()
-            vel = (vx, vy, vz)
+            lat, lon, alt = self._frame.to_lla(*nav[0])
+            vel = nav[1]
         p = self._p
+        bg, ba = ins.bias_g_rps, ins.bias_a_mps2
+        quality, sats, hdop, age, geoid, station, talker = fix_fields(fix)
+        imu, t = self._imu, self._t_s
+        assert t is not None  # a sample came: the INS levelled on it
+        # positional, in the field order (keywords cost a third of the solution's build)
         return Solution(
-            **common,
-            is_ekf=True,
-            mode=mode,
-            roll_rad=roll,
-            pitch_rad=pitch,
-            yaw_rad=yaw if p is not None else None,
-            yaw_rate_rps=c9[6] * w_b[0] + c9[7] * w_b[1] + c9[8] * w_b[2],  # output only
-            lat_deg=lat,
-            lon_deg=lon,
-            alt_m=alt,
-            vel_ned_mps=vel,
-            bias_g_rps=(ins.bias_g_rps[0], ins.bias_g_rps[1], ins.bias_g_rps[2]),
-            bias_a_mps2=(ins.bias_a_mps2[0], ins.bias_a_mps2[1], ins.bias_a_mps2[2]),
-            sigma_tilt_rad=self._sigma_tilt_rad(),
-            gnss_ok=p is not None
-            and coasting_s == 0.0
-            and fix is not None
-            and fix.quality != FixQuality.NONE,
-            reversing=self._reversing,
-            stationary=self._stationary,
-            coasting=coasting_s > 0.0,
-            convergence=self._convergence(coasting_s),
-        )
+            t, mode, roll, pitch, yaw if p is not None else None,
+            c9[6] * w_b[0] + c9[7] * w_b[1] + c9[8] * w_b[2],  # yaw rate, output only
+            lat, lon, alt, vel, (bg[0], bg[1], bg[2]), (ba[0], ba[1], ba[2]),
+            self._sigma_tilt_rad(),
+            quality, sats, hdop, age, geoid, station, talker,
+            p is not None and coasting_s == 0.0 and fix is not None
+            and fix.quality != FixQuality.NONE,  # gnss_ok
+            imu.ok, imu.alarm, self._reversing, self._stationary, coasting_s > 0.0,
+            True, self._convergence(coasting_s),  # is_ekf, convergence
+        )  # fmt: skip
 
     def _convergence(self, coasting_s: float) -> Convergence:
         """Bias learning flags from the 1-sigmas in P; learning is frozen without P and while
         coasting."""
         p, cfg = self._p, self.cfg
         if p is None:
-            return Convergence(learning_frozen=True)
-        sig_ax, sig_ay, _, sig_gx, sig_gy, sig_gz = np.sqrt(
-            p.diagonal()[BA.start : BG.stop]
-        ).tolist()
-        return Convergence(
-            gyro_xy=max(sig_gx, sig_gy) < cfg.gyro_xy_converged_dps * DEG_TO_RAD,
-            gyro_z=sig_gz < cfg.gyro_z_converged_dps * DEG_TO_RAD,
-            accel_xy=max(sig_ax, sig_ay) < cfg.accel_xy_converged_mps2,
-            learning_frozen=coasting_s > 0.0,
+            return convergence_of(False, False, False, True)
+        i, j = BA.start, BG.start
+        var_ax, var_ay, var_gx, var_gy, var_gz = (
+            p.item(i, i), p.item(i + 1, i + 1), p.item(j, j), p.item(j + 1, j + 1),
+            p.item(j + 2, j + 2),
+        )  # fmt: skip
+        return convergence_of(
+            math.sqrt(max(var_gx, var_gy)) < cfg.gyro_xy_converged_dps * DEG_TO_RAD,
+            math.sqrt(var_gz) < cfg.gyro_z_converged_dps * DEG_TO_RAD,
+            math.sqrt(max(var_ax, var_ay)) < cfg.accel_xy_converged_mps2,
+            coasting_s > 0.0,
         )
 
     def _coasting_s(self) -> float:

@@ -38,6 +38,7 @@ from gateway.estimation.engine_base import (
     ImuHealth,
     common_fields,
     dead_reckoning_output,
+    fix_fields,
     levelling_correction,
     seeded_exponent,
 )
@@ -53,10 +54,10 @@ from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.position_channel import PositionChannel
 from gateway.estimation.observer.tereshkov import TereshkovObserver
 from gateway.estimation.solution import (
-    Convergence,
     LearnedState,
     Mode,
     Solution,
+    convergence_of,
     navigation_mode,
 )
 
@@ -886,10 +887,9 @@ class ObserverEngine:
     def solution(self) -> Solution:
         """The current solution at the time of the last IMU sample."""
         fix = self._last_fix
-        common = common_fields(self._t_s, fix, self._imu)
         obs = self._observer
         if obs is None:
-            return Solution(mode=Mode.INITIALISING, **common)
+            return Solution(mode=Mode.INITIALISING, **common_fields(self._t_s, fix, self._imu))
         c9 = obs.c_bp9
         roll, pitch, yaw = rpy_from_mat9(c9)
         coasting_s = self._coasting_s()
@@ -906,31 +906,26 @@ class ObserverEngine:
             lat, lon, alt = self._frame.to_lla(*self._p_ned_m)
             vel = (self._v_ned_mps[0], self._v_ned_mps[1], self._v_ned_mps[2])
         k = self.cfg.converged_time_constants
-        return Solution(
-            **common,
-            mode=self._mode(coasting_s, within),
-            roll_rad=roll,
-            pitch_rad=pitch,
-            yaw_rad=yaw if self._heading_aligned else None,
-            yaw_rate_rps=self._yaw_rate_rps(c9),
-            lat_deg=lat,
-            lon_deg=lon,
-            alt_m=alt,
-            vel_ned_mps=vel,
-            bias_g_rps=obs.bg_hat_rps,
-            bias_a_mps2=obs.ba_hat_mps2,
-            sigma_tilt_rad=self._sigma_tilt_rad(coasting_s),
-            gnss_ok=gnss_ok,
-            reversing=self._heading.reversing,
-            stationary=self._stationary,
-            coasting=coasting_s > 0.0,
-            convergence=Convergence(
-                gyro_xy=self._g_learn >= k,
-                gyro_z=self._heading.kf.sigma_rps < self.cfg.gyro_z_converged_dps * DEG_TO_RAD,
-                accel_xy=self._a_learn >= k,
-                learning_frozen=not obs.learn,
-            ),
+        convergence = convergence_of(
+            self._g_learn >= k,
+            self._heading.kf.sigma_rps < self.cfg.gyro_z_converged_dps * DEG_TO_RAD,
+            self._a_learn >= k,
+            not obs.learn,
         )
+        quality, sats, hdop, age, geoid, station, talker = fix_fields(fix)
+        imu, t = self._imu, self._t_s
+        assert t is not None  # a sample came: the observer levelled on it
+        # positional, in the field order (keywords cost a third of the solution's build)
+        return Solution(
+            t, self._mode(coasting_s, within),
+            roll, pitch, yaw if self._heading_aligned else None, self._yaw_rate_rps(c9),
+            lat, lon, alt, vel, obs.bg_hat_rps, obs.ba_hat_mps2,
+            self._sigma_tilt_rad(coasting_s),
+            quality, sats, hdop, age, geoid, station, talker,
+            gnss_ok, imu.ok, imu.alarm,  # gnss_ok, imu_ok, imu_alarm
+            self._heading.reversing, self._stationary, coasting_s > 0.0,  # ... coasting
+            False, convergence,  # is_ekf, convergence
+        )  # fmt: skip
 
     def _yaw_rate_rps(self, c9: Mat9) -> float | None:
         """Rate of turn about the NED vertical, (C w_b)[2], w_b averaged over the last
