@@ -12,7 +12,7 @@ from collections import deque
 from collections.abc import Iterator
 from typing import Any, Protocol
 
-from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
+from drivers.samples import FixQuality, GnssFix, ImuSample
 from drivers.units import GRAVITY_MPS2
 from gateway.estimation.solution import ImuTiming
 
@@ -86,8 +86,9 @@ class ImuHealth:
         self.bad_since_s: float | None = None  # start of the current run of unusable samples
         self._bad_for_s = 0.0
 
-    def accept(self, sample: ImuSample) -> tuple[float, Float3, Float3] | None:
-        """(dt, w_ib_b, f_ib_b) to integrate, or None for a sample to skip (not finite)."""
+    def accept(self, sample: ImuSample) -> float | None:
+        """The step to integrate ``sample``'s w_ib_b and f_ib_b over, s, or None for a sample
+        to skip (not finite)."""
         t = sample.t
         dt = self.timing.step(sample)
         w = sample.w_ib_b
@@ -101,7 +102,7 @@ class ImuHealth:
             self._mark_bad(t)
         else:
             self.bad_since_s, self._bad_for_s = None, 0.0
-        return dt, w, f
+        return dt
 
     @property
     def fault(self) -> bool:
@@ -119,29 +120,26 @@ class ImuHealth:
         self._bad_for_s = t - self.bad_since_s
 
 
-class HeldEpochs:
+class HeldEpochs(deque[tuple[float, GnssFix]]):
     """GNSS epochs whose time is ahead of the last IMU sample (zero or under-stated receiver
     latency) wait here until the IMU covers them, so a correction compares quantities of one
-    instant."""
+    instant. A deque of (epoch time, fix): the engines test it per IMU sample, and a deque's
+    truth is tested without a Python call."""
 
     def __init__(self) -> None:
-        self._epochs: deque[tuple[float, GnssFix]] = deque(maxlen=MAX_HELD_EPOCHS)
-
-    def __bool__(self) -> bool:
-        return bool(self._epochs)
+        super().__init__(maxlen=MAX_HELD_EPOCHS)
 
     def hold(self, t_e: float, fix: GnssFix, t_imu: float | None) -> bool:
         """Keep the epoch of time ``t_e`` if the IMU has not reached it; True if kept."""
         if t_imu is not None and t_e <= t_imu:
             return False
-        self._epochs.append((t_e, fix))
+        self.append((t_e, fix))
         return True
 
     def due(self, t_imu: float) -> Iterator[tuple[float, GnssFix]]:
         """(epoch time, fix) of each held epoch the IMU has now covered, oldest first."""
-        epochs = self._epochs
-        while epochs and epochs[0][0] <= t_imu:
-            yield epochs.popleft()
+        while self and self[0][0] <= t_imu:
+            yield self.popleft()
 
 
 #: :class:`Solution`'s fields of the receiver's last fix, in their order (:func:`fix_fields`).

@@ -186,10 +186,10 @@ class EkfEngine:
     def imu(self, sample: ImuSample) -> None:
         """Propagate with one IMU sample (body frame, bias not yet removed)."""
         t = sample.t
-        step = self._imu.accept(sample)
-        if step is None:
+        dt = self._imu.accept(sample)
+        if dt is None:
             return
-        dt, w, f = step
+        w, f = sample.w_ib_b, sample.f_ib_b
         if self._tuning is None:
             self._tuning = EkfTuning.from_config(self.cfg, dt)
             self._q_c = process_noise_psd(self._tuning)

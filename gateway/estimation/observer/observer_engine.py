@@ -183,10 +183,10 @@ class ObserverEngine:
     def imu(self, sample: ImuSample) -> None:
         """Propagate with one IMU sample (body frame, bias not yet removed)."""
         t = sample.t
-        step = self._imu.accept(sample)
-        if step is None:
+        dt = self._imu.accept(sample)
+        if dt is None:
             return
-        dt, w, f = step
+        w, f = sample.w_ib_b, sample.f_ib_b
         self._t_s = t
         obs = self._observer
         if obs is None:
