@@ -473,10 +473,14 @@ class ImuDecoder:
             self._missing.clear()
             self._anchor(a, n, a - n * self._dt, seq, None if start else f"DEC changed to {dec}")
         else:
-            step = self._unwrap(seq, a)
-            if step is None:
-                return None
-            n = self._track(seq, a, step)
+            if (seq - self._seq_last) & 0xFF == 1:  # the next sample: nothing to unwrap
+                self._seq_taken, self._shift_pending = seq, None
+                n = self._track(seq, a, self._n_last + 1)
+            else:
+                step = self._unwrap(seq, a)
+                if step is None:
+                    return None
+                n = self._track(seq, a, step)
         self._n_last, self._seq_last, self._a_last = n, self._seq_taken, a
         if len(self._missing) > 512:
             self._missing = {i for i in self._missing if i > n - 256}
@@ -521,7 +525,8 @@ class ImuDecoder:
         return (x, y, z)
 
     def _unwrap(self, seq: int, a: float) -> int | None:
-        """The index of sample ``seq`` arriving at ``a`` (None if late); counts SEQ gaps lost."""
+        """The index of sample ``seq`` arriving at ``a`` (None if late); counts SEQ gaps lost.
+        (:meth:`_sample` takes the common case, the SEQ after the last, itself.)"""
         n_last = self._n_last
         k = (seq - self._seq_last) & 0xFF
         self._seq_taken = seq

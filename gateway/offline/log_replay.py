@@ -19,7 +19,7 @@ from pathlib import Path
 
 from drivers.logs.candump import CandumpWriter
 from drivers.nmea import NmeaCounters
-from drivers.samples import ImuCounters
+from drivers.samples import ImuCounters, ImuSample
 from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import GatewayConfig
 from gateway.fusion.fusion_core import NOTHING, FusionCore, FusionStats
@@ -76,13 +76,14 @@ def replay(
     t_first = t_last = None
     wall = time.perf_counter()
     with CandumpWriter(out_log, config.isobus.channel or config.imu.channel) as writer:
-        write_all, on_input = writer.write_all, core.on_input
+        write_all, on_input, on_imu = writer.write_all, core.on_input, core.on_imu
         for item in stream:
             if t_first is None:
                 t_first = item.t
                 write_all(core.start(item.t))
             t_last = item.t
-            frames = on_input(item)
+            # IMU samples straight to on_imu: on_input would dispatch them there, per sample
+            frames = on_imu(item) if type(item) is ImuSample else on_input(item)
             if frames is not NOTHING:  # most IMU samples send nothing
                 write_all(frames)
     wall = time.perf_counter() - wall
