@@ -81,7 +81,7 @@ class Withheld(Enum):
     SIGMA = "roll/pitch sigma"
 
 
-@dataclass
+@dataclass(slots=True)
 class _Track:
     """A position and velocity sent (or a candidate track), local metres via degrees."""
 

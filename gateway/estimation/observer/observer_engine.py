@@ -147,6 +147,10 @@ class ObserverEngine:
         self._position = PositionChannel(cfg.gnss_error_correlation_s, cfg.gnss_white_share)
         self._t_position_s = 0.0  # epoch time the position channel was predicted to
         self._l_imu_f = tuple(float(x) for x in cfg.imu_lever_arm_m)
+        # the constant terms of the roll/pitch variance (_sigma_tilt_rad)
+        arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
+        self._arw_tilt_var = arw**2 * cfg.tau_s / 2.0
+        self._mounting_var = (cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         self._v_imu_ned_mps = [0.0, 0.0, 0.0]  # IMU-point velocity while coasting
         # IMU-point minus reference-point velocity, C (w_b x l_imu), at the last velocity
         # reset: the velocity state integrates the IMU point's f_p since then
@@ -934,17 +938,7 @@ class ObserverEngine:
         if not self._hist:
             return None
         last = self._hist[-1]
-        row0 = self._history_at(last[_T] - OUTPUT_RATE_WINDOW_S)
-        obs = self._observer
-        if row0 is None or last[_T] <= row0[_T]:
-            w = obs.w_b_rps if obs is not None else (0.0, 0.0, 0.0)
-        else:
-            span = last[_T] - row0[_T]
-            w = (
-                (last[_WI_X] - row0[_WI_X]) / span,
-                (last[_WI_Y] - row0[_WI_Y]) / span,
-                (last[_WI_Z] - row0[_WI_Z]) / span,
-            )
+        w = self._mean_rate(last[_T] - OUTPUT_RATE_WINDOW_S, last)
         return c9[6] * w[0] + c9[7] * w[1] + c9[8] * w[2]
 
     def _coasting_s(self) -> float:
@@ -1004,18 +998,17 @@ class ObserverEngine:
           with tau while the tilt loop is closed;
         - the IMU mounting's own roll/pitch 1-sigma (an estimated mounting is not exact).
         """
-        cfg = self.cfg
+        tau = self.cfg.tau_s
         g = GRAVITY_MPS2
         sigma_bg = self._sigma_bg_rps()
         sigma_ba = self._sigma_ba_mps2()
-        arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
         return math.sqrt(
-            arw**2 * cfg.tau_s / 2.0
-            + (sigma_v / (g * cfg.tau_s)) ** 2
-            + (sigma_bg * cfg.tau_s) ** 2
+            self._arw_tilt_var
+            + (sigma_v / (g * tau)) ** 2
+            + (sigma_bg * tau) ** 2
             + (sigma_ba / g) ** 2
             + (sigma_bg * coasting_s) ** 2
             + self._sigma_level_rad**2
-            + (cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
+            + self._mounting_var
         )
