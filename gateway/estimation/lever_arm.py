@@ -11,11 +11,14 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy as np
 import numpy.typing as npt
 
 from gateway.estimation.attitude import Mat9, to_mat9
 
 Vec3 = tuple[float, float, float]
+#: A 3-vector argument: floats, or a (3,) array (analysis and tests).
+Vec = Sequence[float] | npt.NDArray[np.float64]
 
 
 def _mat9(c_bn: Mat9 | npt.ArrayLike) -> Mat9:
@@ -30,14 +33,14 @@ def _rotate(c: Mat9, x: float, y: float, z: float) -> Vec3:
     )
 
 
-def lever_arm_position_ned(c_bn: Mat9 | npt.ArrayLike, lever_arm_b: Sequence[float]) -> Vec3:
+def lever_arm_position_ned(c_bn: Mat9 | npt.ArrayLike, lever_arm_b: Vec) -> Vec3:
     """C_b^n l: NED offset of a body point from the reference point, m."""
     lx, ly, lz = lever_arm_b
     return _rotate(_mat9(c_bn), lx, ly, lz)
 
 
 def lever_arm_velocity_ned(
-    c_bn: Mat9 | npt.ArrayLike, w_b_rps: Sequence[float], lever_arm_b: Sequence[float]
+    c_bn: Mat9 | npt.ArrayLike, w_b_rps: Vec, lever_arm_b: Vec
 ) -> Vec3:
     """C_b^n (w_b x l): velocity of a body point relative to the reference, m/s."""
     wx, wy, wz = w_b_rps
@@ -46,7 +49,7 @@ def lever_arm_velocity_ned(
 
 
 def reference_from_antenna(
-    p_ant_ned_m: Sequence[float], c_bn: Mat9 | npt.ArrayLike, lever_arm_ant_b: Sequence[float]
+    p_ant_ned_m: Vec, c_bn: Mat9 | npt.ArrayLike, lever_arm_ant_b: Vec
 ) -> Vec3:
     """Reference-point position p_ant - C_b^n l_ant, NED m."""
     dn, de, dd = lever_arm_position_ned(c_bn, lever_arm_ant_b)
@@ -55,11 +58,11 @@ def reference_from_antenna(
 
 
 def velocity_at(
-    v_src_ned_mps: Sequence[float],
+    v_src_ned_mps: Vec,
     c_bn: Mat9 | npt.ArrayLike,
-    w_b_rps: Sequence[float],
-    lever_arm_src_b: Sequence[float],
-    lever_arm_dst_b: Sequence[float],
+    w_b_rps: Vec,
+    lever_arm_src_b: Vec,
+    lever_arm_dst_b: Vec,
 ) -> Vec3:
     """Velocity of body point ``dst`` from the measured velocity of body point ``src``.
 
