@@ -26,13 +26,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 import numpy.typing as npt
 
-from drivers.samples import GnssFix, ImuSample
+from drivers.samples import Float3, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD
 from gateway.estimation.attitude import dcm_from_rpy, roll_pitch_from_specific_force, rpy_from_dcm
 from gateway.estimation.geodesy import ned_to_lla
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
-from gateway.estimation.solution import Convergence, Estimator, Float3, Solution
+from gateway.estimation.solution import Convergence, Estimator, Solution
 
 Array = npt.NDArray[np.float64]
 

@@ -39,9 +39,7 @@ def lever_arm_position_ned(c_bn: Mat9 | npt.ArrayLike, lever_arm_b: Vec) -> Vec3
     return _rotate(_mat9(c_bn), lx, ly, lz)
 
 
-def lever_arm_velocity_ned(
-    c_bn: Mat9 | npt.ArrayLike, w_b_rps: Vec, lever_arm_b: Vec
-) -> Vec3:
+def lever_arm_velocity_ned(c_bn: Mat9 | npt.ArrayLike, w_b_rps: Vec, lever_arm_b: Vec) -> Vec3:
     """C_b^n (w_b x l): velocity of a body point relative to the reference, m/s."""
     wx, wy, wz = w_b_rps
     lx, ly, lz = lever_arm_b

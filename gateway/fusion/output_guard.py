@@ -42,9 +42,9 @@ from dataclasses import dataclass, replace
 from enum import Enum
 
 from drivers.log_limit import LogLimiter
-from drivers.samples import FixQuality
+from drivers.samples import FixQuality, Float3
 from drivers.units import DEG_TO_RAD
-from gateway.estimation.solution import Float3, Mode, Solution
+from gateway.estimation.solution import Mode, Solution
 
 log = logging.getLogger(__name__)
 

@@ -16,9 +16,9 @@ import can
 import cantools
 
 import dbc
-from drivers.samples import CORRECTED_QUALITIES, FixQuality
+from drivers.samples import CORRECTED_QUALITIES, FixQuality, Float3
 from drivers.units import SECONDS_PER_DAY, wrap_pi
-from gateway.estimation.solution import Float3, Solution
+from gateway.estimation.solution import Solution
 from gateway.isobus.fast_packet import FastPacketFragmenter
 from gateway.isobus.frame_codec import FrameCodec, Value
 from gateway.isobus.j1939 import (

@@ -994,8 +994,7 @@ class ObserverEngine:
           down to the paper's residual level;
         - open-loop drift b_g t while coasting;
         - the tilt error of levelling on a moving window (:mod:`gateway.estimation.levelling`),
-          decaying
-          with tau while the tilt loop is closed;
+          decaying with tau while the tilt loop is closed;
         - the IMU mounting's own roll/pitch 1-sigma (an estimated mounting is not exact).
         """
         tau = self.cfg.tau_s
