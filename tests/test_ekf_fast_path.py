@@ -1,8 +1,9 @@
-"""The EKF's fast path computes the same bits as the plain numpy forms it replaces (issue 14).
+"""The EKF's fast path computes what the plain forms it replaces compute (issue 14).
 
 The INS history applies corrections when a row is read (:mod:`gateway.estimation.ekf.ins_history`);
-here it is checked against a history that shifts every row at once, and the in-place
-symmetrisation of P against ``0.5 * (P + P^T)`` of the full expressions.
+here it is checked, bit for bit, against a history that shifts every row at once. The
+covariance prediction and correction, the transition matrix and the small inverse are
+checked against the textbook expressions, to rounding.
 """
 
 from __future__ import annotations
@@ -10,9 +11,17 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numpy.testing import assert_allclose
 
-from gateway.estimation.attitude import exp_so3
-from gateway.estimation.ekf.error_state import N_STATES, Measurement, correct, predict
+from gateway.estimation.attitude import exp_so3, skew
+from gateway.estimation.ekf.error_state import (
+    N_STATES,
+    Measurement,
+    correct,
+    inverse_small,
+    predict,
+    transition_matrix,
+)
 from gateway.estimation.ekf.ins_history import ROW_C, ROW_P, ROW_T, ROW_V, ROW_W, InsHistory
 
 Array = np.ndarray
@@ -87,7 +96,10 @@ def _spd(rng: np.random.Generator) -> Array:
     return a @ a.T + np.eye(N_STATES)
 
 
-def test_covariance_updates_equal_the_full_expressions() -> None:
+def test_covariance_updates_equal_the_textbook_forms() -> None:
+    """predict: Phi (P + Q T/2) Phi^T + Q T/2 is the trapezoid Phi P Phi^T + (Phi Q Phi^T +
+    Q) T/2; correct: P - K (P H^T)^T is the Joseph form for the optimal gain. Equal to
+    rounding (relative 1e-12 of the matrix), and exactly symmetric."""
     rng = np.random.default_rng(4)
     for _ in range(20):
         p = _spd(rng)
@@ -95,12 +107,44 @@ def test_covariance_updates_equal_the_full_expressions() -> None:
         q_c, t_s = rng.uniform(0.0, 1.0, N_STATES), 0.05
         want = phi @ p @ phi.T + 0.5 * t_s * ((phi * q_c) @ phi.T + np.diag(q_c))
         predict(p, phi, q_c, t_s)
-        assert np.array_equal(p, 0.5 * (want + want.T))
+        assert np.array_equal(p, p.T)
+        assert_allclose(p, want, rtol=0.0, atol=1e-12 * float(np.abs(want).max()))
 
-        h, r = rng.normal(size=(2, N_STATES)), np.diag(rng.uniform(1.0, 2.0, 2))
-        m = Measurement("x", 0.1 * rng.normal(size=2), h, r)
-        k = p @ h.T @ np.linalg.inv(h @ (p @ h.T) + r)
-        ikh = np.eye(N_STATES) - k @ h
-        want = ikh @ p @ ikh.T + k @ r @ k.T
-        assert correct(p, np.zeros(N_STATES), m, 1e3).accepted
-        assert np.array_equal(p, 0.5 * (want + want.T))
+        for m_rows in (1, 2, 3):
+            h = rng.normal(size=(m_rows, N_STATES))
+            r = np.diag(rng.uniform(1.0, 2.0, m_rows))
+            m = Measurement("x", 0.1 * rng.normal(size=m_rows), h, r)
+            k = p @ h.T @ np.linalg.inv(h @ (p @ h.T) + r)
+            ikh = np.eye(N_STATES) - k @ h
+            want = ikh @ p @ ikh.T + k @ r @ k.T
+            dx = np.zeros(N_STATES)
+            assert correct(p, dx, m, 1e3).accepted
+            assert np.array_equal(p, p.T)
+            assert_allclose(p, want, rtol=0.0, atol=1e-12 * float(np.abs(want).max()))
+            assert_allclose(dx, k @ m.z, rtol=1e-12)
+
+
+def test_small_inverse_equals_numpys() -> None:
+    rng = np.random.default_rng(5)
+    for n in (1, 2, 3):
+        for _ in range(50):
+            a = rng.normal(size=(n, n)) * 10.0 ** rng.uniform(-6, 2)
+            s = a @ a.T + np.eye(n) * 10.0 ** rng.uniform(-8, 0)
+            assert_allclose(inverse_small(s) @ s, np.eye(n), atol=1e-9)
+            assert_allclose(inverse_small(s), np.linalg.inv(s), rtol=1e-9)
+
+
+def test_transition_blocks_equal_the_series() -> None:
+    """The written-out blocks of Phi equal I + A + A^2/2 + A^3/6 of the averaged F."""
+    rng = np.random.default_rng(6)
+    for _ in range(20):
+        t_s, dv, c_dt = 0.05, rng.normal(size=3), 0.05 * exp_so3(rng.normal(size=3))
+        a = np.zeros((N_STATES, N_STATES))
+        a[0:3, 3:6] = t_s * np.eye(3)
+        a[3:6, 6:9] = -skew(dv)
+        a[3:6, 9:12] = -c_dt
+        a[6:9, 12:15] = -c_dt
+        a2 = a @ a
+        want = np.eye(N_STATES) + a + a2 / 2.0 + a2 @ a / 6.0
+        want[15:18, 15:18] = 0.9 * np.eye(3)
+        assert_allclose(transition_matrix(t_s, dv, c_dt, 0.9), want, rtol=0.0, atol=1e-15)
