@@ -13,7 +13,7 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 
-from gateway.estimation.attitude import exp_so3, skew
+from gateway.estimation.attitude import Mat9, exp_so3, skew, to_mat9
 from gateway.estimation.ekf.error_state import (
     N_STATES,
     Measurement,
@@ -22,29 +22,28 @@ from gateway.estimation.ekf.error_state import (
     predict,
     transition_matrix,
 )
-from gateway.estimation.ekf.ins_history import ROW_C, ROW_P, ROW_T, ROW_V, ROW_W, InsHistory
+from gateway.estimation.ekf.ins_history import ROW_T, ROW_W, InsHistory, Shift
 
 Array = np.ndarray
 
 
 class EagerHistory:
-    """The reference: every row kept as numpy and shifted at once."""
+    """The reference: every row kept and shifted at once."""
 
     def __init__(self, n: int) -> None:
-        self.rows = np.zeros((0, 19))
+        self.rows: list[list[float]] = []
         self.n = n
 
     def append(self, row: tuple[float, ...]) -> None:
-        self.rows = np.vstack((self.rows, row))[-self.n :]
+        self.rows = [*self.rows, list(row)][-self.n :]
 
-    def shift(self, dp: Array, dv: Array, rot: Array, t_e: float = math.inf) -> None:
-        rows = self.rows
-        rows[:, ROW_P] += dp + np.maximum(rows[:, ROW_T] - t_e, 0.0)[:, None] * dv
-        rows[:, ROW_V] += dv
-        rows[:, ROW_C] = (rot @ rows[:, ROW_C].reshape(-1, 3, 3)).reshape(-1, 9)
+    def shift(self, dp: Array, dv: Array, rot: Mat9, t_e: float = math.inf) -> None:
+        correction = Shift(tuple(dp.tolist()), tuple(dv.tolist()), rot, t_e)
+        for row in self.rows:
+            correction.apply(row)
 
     def at(self, t_s: float) -> Array | None:
-        rows = self.rows
+        rows = np.array(self.rows)
         if not rows[0, ROW_T] <= t_s <= rows[-1, ROW_T]:
             return None
         i = int(np.searchsorted(rows[:, ROW_T], t_s))
@@ -55,7 +54,7 @@ class EagerHistory:
         return a + u * (b - a)
 
     def mean_rate(self, t_s: float, half_width_s: float) -> Array:
-        rows = self.rows
+        rows = np.array(self.rows)
         near = np.abs(rows[:, ROW_T] - t_s) <= half_width_s
         return rows[near, ROW_W].mean(axis=0) if near.any() else rows[-1, ROW_W].copy()
 
@@ -78,16 +77,16 @@ def test_history_read_late_equals_history_shifted_at_once() -> None:
         if k % 3 == 0:
             dp, dv, rot = rng.normal(size=3), rng.normal(size=3), exp_so3(rng.normal(size=3) * 1e-3)
             t_e = t - float(rng.uniform(0.0, 0.1)) if k % 2 else math.inf
-            lazy.shift(dp, dv, rot, t_e)
-            eager.shift(dp, dv, rot, t_e)
-        for t_s in (t - float(rng.uniform(0.0, 0.2)), float(eager.rows[0, ROW_T]), t, t + 1.0):
+            lazy.shift(dp, dv, to_mat9(rot), t_e)
+            eager.shift(dp, dv, to_mat9(rot), t_e)
+        for t_s in (t - float(rng.uniform(0.0, 0.2)), float(eager.rows[0][ROW_T]), t, t + 1.0):
             want, got = eager.at(t_s), lazy.at(t_s)
             if want is None or got is None:
                 assert want is None and got is None
             else:
                 assert np.array_equal(want, got)
             assert np.array_equal(lazy.mean_rate(t_s, 0.02), eager.mean_rate(t_s, 0.02))
-        assert lazy.oldest_s() == eager.rows[0, ROW_T]
+        assert lazy.oldest_s() == eager.rows[0][ROW_T]
         assert lazy.full == (len(eager.rows) == n)
 
 

@@ -10,6 +10,7 @@ the observer uses the unrolled float forms :func:`exp_so3_2nd`, :func:`exp_so3_9
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 
 import numpy as np
 import numpy.typing as npt
@@ -18,6 +19,8 @@ Array = npt.NDArray[np.float64]
 
 #: A 3x3 matrix as 9 floats, row major: (c00, c01, c02, c10, ..., c22). Hot-path form.
 Mat9 = tuple[float, float, float, float, float, float, float, float, float]
+#: The identity as a :data:`Mat9`.
+IDENTITY9: Mat9 = (1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0)
 
 
 def skew(v: npt.ArrayLike) -> Array:
@@ -144,8 +147,8 @@ def exp_so3_2nd(x: float, y: float, z: float) -> Mat9:
     )  # fmt: skip
 
 
-def dcm_mul(a: Mat9, b: Mat9) -> Mat9:
-    """Matrix product a @ b of two row-major 3x3 float tuples (unrolled, no numpy)."""
+def dcm_mul(a: Sequence[float], b: Sequence[float]) -> Mat9:
+    """Matrix product a @ b of two row-major 3x3 matrices of 9 floats (unrolled, no numpy)."""
     a00, a01, a02, a10, a11, a12, a20, a21, a22 = a
     b00, b01, b02, b10, b11, b12, b20, b21, b22 = b
     return (

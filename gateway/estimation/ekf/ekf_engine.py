@@ -42,6 +42,7 @@ from drivers.log_limit import LogLimiter
 from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, Float3, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 from gateway.estimation.attitude import (
+    IDENTITY9,
     cross3,
     dcm_from_rpy,
     exp_so3,
@@ -471,10 +472,7 @@ class EkfEngine:
         same error again: 8 m of error with epochs 4 s late in 2 s bursts, 0.x m with it.
         """
         assert self._ins is not None and self._hist is not None and self._t_s is not None
-        age_s = max(0.0, self._t_s - t_e)
-        dx_now = dx.copy()
-        dx_now[POS] += dx[VEL] * age_s
-        rot = self._ins.inject(dx_now)
+        rot = self._ins.inject(dx, max(0.0, self._t_s - t_e))
         self._hist.shift(dx[POS], dx[VEL], rot, t_e)
         self._fix_err_ned_m += dx[FIX]
 
@@ -502,7 +500,7 @@ class EkfEngine:
         c_e = row[ROW_C].reshape(3, 3)
         rot = exp_so3((0.0, 0.0, target - math.atan2(c_e[1, 0], c_e[0, 0])))
         ins.rotate(rot)
-        hist.shift(np.zeros(3), np.zeros(3), rot)
+        hist.shift(np.zeros(3), np.zeros(3), to_mat9(rot))
         row_aligned = hist.at(t_e)
         assert row_aligned is not None
         self._p = np.zeros((N_STATES, N_STATES))
@@ -628,7 +626,7 @@ class EkfEngine:
         dv = v_imu - np.array(ins.v_ned_mps)
         ins.p_ned_m = [float(x) for x in p_now]
         ins.v_ned_mps = [float(x) for x in v_imu]
-        hist.shift(dp, dv, np.eye(3))
+        hist.shift(dp, dv, IDENTITY9)
         for s in (POS, VEL, FIX):
             p[s, :] = 0.0
             p[:, s] = 0.0
@@ -687,16 +685,22 @@ class EkfEngine:
         """Stationary and reversing from the reference-point body velocity (hysteresis)."""
         ins = self._ins
         assert ins is not None
-        w_b = np.array(ins.w_b_lp_rps)
-        v_ref_b = ins.c_bn.T @ np.array(ins.v_ned_mps) - cross3(w_b, self._l_imu_b)
+        c0, c1, c2, c3, c4, c5, c6, c7, c8 = ins.c_bn9
+        vn, ve, vd = ins.v_ned_mps
+        wx, wy, wz = ins.w_b_lp_rps
+        lx, ly, lz = self._l_imu_b_f
+        # C^T v - w x l_imu, body
+        u = c0 * vn + c3 * ve + c6 * vd - (wy * lz - wz * ly)
+        v = c1 * vn + c4 * ve + c7 * vd - (wz * lx - wx * lz)
+        w = c2 * vn + c5 * ve + c8 * vd - (wx * ly - wy * lx)
         cfg = self.cfg
         self._stationary = (
-            float(np.linalg.norm(v_ref_b)) < cfg.stationary_speed_mps
-            and float(np.linalg.norm(w_b)) < cfg.stationary_rate_dps * DEG_TO_RAD
+            math.sqrt(u * u + v * v + w * w) < cfg.stationary_speed_mps
+            and math.sqrt(wx * wx + wy * wy + wz * wz) < cfg.stationary_rate_dps * DEG_TO_RAD
         )
-        if v_ref_b[0] < -cfg.reverse_detect_speed_mps:
+        if u < -cfg.reverse_detect_speed_mps:
             self._reversing = True
-        elif v_ref_b[0] > cfg.reverse_detect_speed_mps:
+        elif u > cfg.reverse_detect_speed_mps:
             self._reversing = False
 
     # ========================================================================= read-out

@@ -41,16 +41,15 @@ from functools import cache
 import numpy as np
 import numpy.typing as npt
 
+from drivers.samples import Float3
 from drivers.units import GRAVITY_MPS2, wrap_pi
 from gateway.estimation.attitude import (
     Mat9,
-    cross3,
     dcm_mul,
-    exp_so3,
     exp_so3_2nd,
+    exp_so3_9,
     from_mat9,
     orthonormalise,
-    skew,
     to_mat9,
 )
 from gateway.estimation.ekf.ekf_config import EkfTuning
@@ -75,7 +74,6 @@ ORTHO_EVERY = 256
 
 _I3 = np.eye(3)
 _I_N = np.eye(N_STATES)
-_DIAG = np.diag_indices(N_STATES)
 
 
 @cache
@@ -275,23 +273,26 @@ class Strapdown:
         self.sum_c_dt = [0.0] * 9
         return out
 
-    def inject(self, dx: Array) -> Array:
-        """Closed-loop feedback of the error estimate ``dx`` (18,); returns the rotation (3, 3).
+    def inject(self, dx: Array, age_s: float = 0.0) -> Mat9:
+        """Closed-loop feedback of the error estimate ``dx`` (18,) of a time ``age_s`` ago;
+        returns the rotation.
 
-        Position, velocity and biases add; attitude is reset by the small rotation
-        C <- exp([phi]x) C. The error state is then zero by definition (the caller drops dx);
-        the reset Jacobian I - [phi/2]x of the covariance is taken as I (phi ~ mrad).
+        Position, velocity and biases add, the position with the velocity error's drift
+        since (dv age_s); attitude is reset by the small rotation C <- exp([phi]x) C. The
+        error state is then zero by definition (the caller drops dx); the reset Jacobian
+        I - [phi/2]x of the covariance is taken as I (phi ~ mrad). In floats: four times a
+        second or more, numpy's per-call cost was half of it.
         """
         d = dx.tolist()
-        dp, dv, dba, dbg = d[POS], d[VEL], d[BA], d[BG]
+        p, v, ba, bg = self.p_ned_m, self.v_ned_mps, self.bias_a_mps2, self.bias_g_rps
         for i in range(3):
-            self.p_ned_m[i] += dp[i]
-            self.v_ned_mps[i] += dv[i]
-            self.bias_a_mps2[i] += dba[i]
-            self.bias_g_rps[i] += dbg[i]
-        rot = exp_so3(dx[ATT])
-        self.c_bn9 = to_mat9(rot @ self.c_bn)
-        return rot
+            p[i] += d[i] + d[3 + i] * age_s
+            v[i] += d[3 + i]
+            ba[i] += d[9 + i]
+            bg[i] += d[12 + i]
+        rot9 = exp_so3_9(d[6], d[7], d[8])
+        self.c_bn9 = dcm_mul(rot9, self.c_bn9)
+        return rot9
 
     def rotate(self, rot: Array) -> None:
         """Turn the attitude by ``rot`` (3, 3) in NED: C <- rot C (alignment of heading)."""
@@ -317,11 +318,14 @@ def transition_matrix(
     I + A: T I (p, v), Fv (v, phi), G (v, ba), G (phi, bg); A^2 / 2: T Fv / 2 (p, phi),
     T G / 2 (p, ba), Fv G / 2 (v, bg); A^3 / 6: T Fv G / 6 (p, bg).
     """
-    fv = -skew(dv_f_ned_mps)
+    x, y, z = dv_f_ned_mps.tolist()
+    fv = np.array(((0.0, z, -y), (-z, 0.0, x), (y, -x, 0.0)))  # -[f_n T]x
     g = -c_dt
     fv_g = fv @ g
     phi = _I_N.copy()
-    phi[POS, VEL] = t_s * _I3
+    for i in range(3):  # the diagonal blocks T I (p, v) and fix_decay I
+        phi[i, 3 + i] = t_s
+        phi[15 + i, 15 + i] = fix_decay
     phi[POS, ATT] = (0.5 * t_s) * fv
     phi[POS, BA] = (0.5 * t_s) * g
     phi[POS, BG] = (t_s / 6.0) * fv_g
@@ -329,7 +333,6 @@ def transition_matrix(
     phi[VEL, BA] = g
     phi[VEL, BG] = 0.5 * fv_g
     phi[ATT, BG] = g
-    phi[FIX, FIX] = fix_decay * _I3
     return phi
 
 
@@ -351,13 +354,26 @@ def predict(p: Array, phi: Array, q_c: Array, t_s: float) -> None:
     """P <- Phi P Phi^T + Q_d in place, Q_d = (Phi Q_c Phi^T + Q_c) T / 2 (trapezoid),
     computed as Phi (P + Q_c T / 2) Phi^T + Q_c T / 2 (the same, two products fewer)."""
     half_q = (0.5 * t_s) * q_c
-    p[_DIAG] += half_q
+    p.ravel()[:: N_STATES + 1] += half_q  # the diagonal (P is C-contiguous: a view)
     p_new = phi @ p @ phi.T
-    p_new[_DIAG] += half_q
+    p_new.ravel()[:: N_STATES + 1] += half_q
     _set_symmetrised(p, p_new)
 
 
 # --- measurement models --------------------------------------------------------------------
+# Built from floats (once or twice an epoch each): numpy's per-call cost for 3-vectors was
+# 8-11 us a model. Their Jacobians are checked against finite differences in tests/test_ekf.py.
+
+_H_POSITION = np.zeros((3, N_STATES))
+_H_POSITION[:, POS] = _I3
+_H_POSITION[:, FIX] = _I3
+_H_VELOCITY = np.zeros((3, N_STATES))
+_H_VELOCITY[:, VEL] = _I3
+
+
+def _minus_skew(x: float, y: float, z: float) -> tuple[Float3, Float3, Float3]:
+    """-[v]x as rows, v = (x, y, z)."""
+    return (0.0, z, -y), (-z, 0.0, x), (y, -x, 0.0)
 
 
 def fuse_position(
@@ -373,13 +389,21 @@ def fuse_position(
 
     Shapes (3,) except ``c_bn`` (3, 3). dz = dp - [C l]x phi + db.
     """
-    c_l = c_bn @ l_ant_b
-    h = np.zeros((3, N_STATES))
-    h[:, POS] = _I3
-    h[:, ATT] = -skew(c_l)
-    h[:, FIX] = _I3
-    z = p_ant_meas_ned_m - (p_ned_m + c_l + fix_error_ned_m)
-    return Measurement("position", z, h, np.diag(white_sigma_ned_m**2))
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c_bn.ravel().tolist()
+    lx, ly, lz = l_ant_b.tolist()
+    cl_n, cl_e, cl_d = (
+        c0 * lx + c1 * ly + c2 * lz,
+        c3 * lx + c4 * ly + c5 * lz,
+        c6 * lx + c7 * ly + c8 * lz,
+    )
+    h = _H_POSITION.copy()
+    h[:, ATT] = _minus_skew(cl_n, cl_e, cl_d)
+    (pn, pe, pd), (mn, me, md) = p_ned_m.tolist(), p_ant_meas_ned_m.tolist()
+    bn, be, bd = fix_error_ned_m.tolist()
+    z = np.array((mn - (pn + cl_n + bn), me - (pe + cl_e + be), md - (pd + cl_d + bd)))
+    sn, se, sd = white_sigma_ned_m.tolist()
+    r = np.array(((sn * sn, 0.0, 0.0), (0.0, se * se, 0.0), (0.0, 0.0, sd * sd)))
+    return Measurement("position", z, h, r)
 
 
 def fuse_velocity(
@@ -396,13 +420,28 @@ def fuse_velocity(
     dv_ant = dv - [C (w x l)]x phi + C [l]x dbg (the rate error is -dbg). ``v_ant_meas_ne_mps``
     shape (2,).
     """
-    v_lever = c_bn @ cross3(w_b_rps, l_ant_b)
-    h = np.zeros((3, N_STATES))
-    h[:, VEL] = _I3
-    h[:, ATT] = -skew(v_lever)
-    h[:, BG] = c_bn @ skew(l_ant_b)
-    z = v_ant_meas_ne_mps - (v_ned_mps + v_lever)[:2]
-    return Measurement("velocity", z, h[:2], sigma_mps**2 * np.eye(2))
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c_bn.ravel().tolist()
+    wx, wy, wz = w_b_rps.tolist()
+    lx, ly, lz = l_ant_b.tolist()
+    ux, uy, uz = wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx  # w x l
+    vl_n, vl_e, vl_d = (
+        c0 * ux + c1 * uy + c2 * uz,
+        c3 * ux + c4 * uy + c5 * uz,
+        c6 * ux + c7 * uy + c8 * uz,
+    )
+    h = _H_VELOCITY.copy()
+    h[:, ATT] = _minus_skew(vl_n, vl_e, vl_d)
+    # C [l]x, row i: (c_i1 lz - c_i2 ly, c_i2 lx - c_i0 lz, c_i0 ly - c_i1 lx)
+    h[:, BG] = (
+        (c1 * lz - c2 * ly, c2 * lx - c0 * lz, c0 * ly - c1 * lx),
+        (c4 * lz - c5 * ly, c5 * lx - c3 * lz, c3 * ly - c4 * lx),
+        (c7 * lz - c8 * ly, c8 * lx - c6 * lz, c6 * ly - c7 * lx),
+    )
+    vn, ve, _ = v_ned_mps.tolist()
+    mn, me = v_ant_meas_ne_mps.tolist()
+    z = np.array((mn - (vn + vl_n), me - (ve + vl_e)))
+    var = sigma_mps * sigma_mps
+    return Measurement("velocity", z, h[:2], np.array(((var, 0.0), (0.0, var))))
 
 
 def fuse_nonholonomic(
@@ -414,13 +453,24 @@ def fuse_nonholonomic(
     forwards, reversing (only the longitudinal component changes sign) and at rest.
     d(v_ref_b) = C^T dv + C^T [v]x phi + [l]x dbg.
     """
-    c_nb = c_bn.T
-    v_ref_b = c_nb @ v_ned_mps + cross3(w_b_rps, l_ref_b)
-    h = np.zeros((3, N_STATES))
-    h[:, VEL] = c_nb
-    h[:, ATT] = c_nb @ skew(v_ned_mps)
-    h[:, BG] = skew(l_ref_b)
-    return Measurement("nonholonomic", -v_ref_b[1:], h[1:], sigma_mps**2 * np.eye(2))
+    _, c1, c2, _, c4, c5, _, c7, c8 = c_bn.ravel().tolist()
+    vn, ve, vd = v_ned_mps.tolist()
+    wx, wy, wz = w_b_rps.tolist()
+    lx, ly, lz = l_ref_b.tolist()
+    h = np.zeros((2, N_STATES))
+    # rows y and z of C^T, of C^T [v]x (row i: column i of C times [v]x) and of [l]x
+    h[:, VEL] = ((c1, c4, c7), (c2, c5, c8))
+    h[:, ATT] = (
+        (c4 * vd - c7 * ve, c7 * vn - c1 * vd, c1 * ve - c4 * vn),
+        (c5 * vd - c8 * ve, c8 * vn - c2 * vd, c2 * ve - c5 * vn),
+    )
+    h[:, BG] = ((lz, 0.0, -lx), (-ly, lx, 0.0))
+    v_y = c1 * vn + c4 * ve + c7 * vd + (wz * lx - wx * lz)
+    v_z = c2 * vn + c5 * ve + c8 * vd + (wx * ly - wy * lx)
+    var = sigma_mps * sigma_mps
+    return Measurement(
+        "nonholonomic", np.array((-v_y, -v_z)), h, np.array(((var, 0.0), (0.0, var)))
+    )
 
 
 def fuse_heading(c_bn: Array, heading_meas_rad: float, sigma_rad: float) -> Measurement:
