@@ -143,7 +143,7 @@ def test_consistency_on_short(short_run: tuple[Truth, list, list]) -> None:
         lo, hi = nees_interval(3, dur, tau_c)
         mean = float(tr.nees[nav, b].mean())
         assert lo <= mean <= hi, f"{name} NEES {mean:.2f} outside [{lo:.2f}, {hi:.2f}]"
-    # covariance symmetric positive definite all along (Joseph form + symmetrisation)
+    # covariance symmetric positive definite all along (P - K S K^T, symmetrised)
     assert tr.min_eig > 0.0 and tr.max_asym == 0.0
     # accuracy on this run (measured: roll/pitch RMS ~0.06/0.05 deg, position ~1.5 cm)
     late = tr.t_s > 60.0  # after the first turn (accelerometer bias observable)
