@@ -4,10 +4,12 @@ accurate, cold and from the learned state of the run before.
 For each seed: a first run (``--first``, default the 16-minute field run) is replayed as
 ``navgw replay --state-dir`` does (the learned state saved at its end); a second run
 (``--second``) continues it ``--pause-s`` later with the same IMU (its bias goes on from
-where it ended: :func:`sim_bus.scenarios.continuation`). The second run goes through the
-fusion core twice per engine, cold and warm, and :func:`gateway.demo.accuracy.start_accuracy`
-says when roll/pitch (10 s RMS within 0.1 deg, held 10 s) and the x/y accelerometer biases
-(within 0.01 m/s^2, held 10 s) were reached, in seconds from the start.
+where it ended: :func:`sim_bus.scenarios.continuation`), parked where the first stopped. The
+second run goes through the fusion core twice per engine, cold and warm, and
+:func:`gateway.demo.accuracy.start_accuracy` says when roll/pitch (10 s RMS within 0.1 deg,
+held 10 s) and the x/y accelerometer biases (within 0.01 m/s^2, held 10 s) were reached, in
+seconds from the start. A third run is the second after a power cycle (a new turn-on bias,
+drawn as for any run): is the store used, and when is roll/pitch right?
 
     .venv/bin/python benchmarks/warm_start.py --seeds 1 2 3 4 5
     .venv/bin/python benchmarks/warm_start.py --first short --passes 8 --seeds 1 2 3
@@ -23,6 +25,7 @@ from pathlib import Path
 
 import numpy as np
 
+from drivers.units import MG_MPS2
 from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import Engine, GatewayConfig, load_config
 from gateway.demo.accuracy import StartAccuracy, record_core, start_accuracy, truth_at
@@ -79,17 +82,26 @@ def main() -> None:
     print(
         "| seed | engine | true accel bias x, y at restart m/s^2 | learned accel bias error "
         "x, y | roll/pitch within 0.1 deg cold / warm s | accel x/y bias within 0.01 "
-        "cold / warm s |"
+        "cold / warm s | after a power cycle: turn-on change x, y mg: store used?, roll/pitch "
+        "within 0.1 deg s |"
     )
-    print("|---|---|---|---|---|---|")
+    print("|---|---|---|---|---|---|---|")
     with tempfile.TemporaryDirectory() as tmp:
         for seed in args.seeds:
             out = Path(tmp) / str(seed)
             run1 = generate(first, out / "first", seed=seed)
             truth1 = Truth.load(run1.truth_file)
-            second = continuation(first, truth1, SCENARIOS[args.second], args.pause_s)
+            second = continuation(
+                first, truth1, SCENARIOS[args.second], args.pause_s, previous_seed=seed
+            )
             run2 = generate(second, out / "second", seed=seed + 1000)
             truth2 = Truth.load(run2.truth_file)
+            # the same, after a power cycle: a new turn-on bias, drawn as for any run
+            imu_on = dataclasses.replace(
+                second.imu, gyro_turn_on_bias_rps=None, accel_turn_on_bias_mps2=None
+            )
+            power_on = dataclasses.replace(second, imu=imu_on)
+            run3 = generate(power_on, out / "power-on", seed=seed + 1000)
             for name in args.engines:
                 engine = Engine(name)
                 state_dir = out / f"state-{name}"
@@ -108,13 +120,17 @@ def main() -> None:
                 config2 = load_config(run2.config_file).with_engine(engine)
                 cold, _ = second_run(run2, config2, None)
                 warm, seeded = second_run(run2, config2, state_dir)
-                assert seeded, "the warm run did not start from the learned state"
+                on, on_seeded = second_run(run3, config2, state_dir)
                 ba0 = truth2.bias_a_mps2[0]
+                jump = Truth.load(run3.truth_file).bias_a_mps2[0] - ba0
                 print(
                     f"| {seed} | {name} | {ba0[0]:+.3f}, {ba0[1]:+.3f} | "
                     f"{learned_err[0]:+.4f}, {learned_err[1]:+.4f} | "
-                    f"{_s(cold.attitude_s)} / {_s(warm.attitude_s)} | "
-                    f"{_s(cold.accel_bias_s)} / {_s(warm.accel_bias_s)} |",
+                    f"{_s(cold.attitude_s)} / {_s(warm.attitude_s)}"
+                    f"{'' if seeded else ' (not used)'} | "
+                    f"{_s(cold.accel_bias_s)} / {_s(warm.accel_bias_s)} | "
+                    f"{jump[0] / MG_MPS2:+.1f}, {jump[1] / MG_MPS2:+.1f}: "
+                    f"{'used' if on_seeded else 'not used'}, {_s(on.attitude_s)} |",
                     flush=True,
                 )
 

@@ -242,7 +242,11 @@ def scenario_from_toml(table: dict[str, Any], where: str = "scenario") -> Scenar
 
 
 def continuation(
-    previous: Scenario, truth: Truth, scenario: Scenario, pause_s: float = 60.0
+    previous: Scenario,
+    truth: Truth,
+    scenario: Scenario,
+    pause_s: float = 60.0,
+    previous_seed: int | None = None,
 ) -> Scenario:
     """``scenario``'s drive with the IMU of ``previous`` (whose run's truth is ``truth``),
     started ``pause_s`` after it ended: a restart of the same gateway, e.g. after a break.
@@ -250,8 +254,11 @@ def continuation(
     The IMU is the same (model settings, mounting, bridge): its turn-on bias is where the
     previous run's bias ended, its in-run wander starts from 0 there, and its temperature
     starts where it ended (a short pause: no time to cool). The clock goes on, and the
-    vehicle starts where it stopped, its first pass along its last heading. Runs that are
-    not continuations are unchanged.
+    vehicle starts where it stopped, its first pass along its last heading. With
+    ``previous_seed`` (the seed ``previous`` ran with) it stands on the same ground, so its
+    attitude at the start is the one it stopped with (a parked vehicle); without, the
+    ground is ``scenario``'s own (as if it had been moved while off). Runs that are not
+    continuations are unchanged.
     """
     imu = previous.imu
     c_b_imu = dcm_from_rpy_deg(imu.imu_mounting_rpy_deg)
@@ -262,14 +269,17 @@ def continuation(
         -t_run / imu.temp_tau_s
     )
     lat, lon, alt = (float(x) for x in truth.lla[-1])
+    vehicle = dataclasses.replace(
+        scenario.vehicle,
+        origin_lla=(lat, lon, alt),
+        swath_heading_deg=math.degrees(float(truth.rpy_rad[-1, 2])),
+    )
+    if previous_seed is not None:
+        vehicle = _on_the_ground_of(vehicle, previous, truth, previous_seed)
     return dataclasses.replace(
         scenario,
         name=f"{scenario.name} after {previous.name}",
-        vehicle=dataclasses.replace(
-            scenario.vehicle,
-            origin_lla=(lat, lon, alt),
-            swath_heading_deg=math.degrees(float(truth.rpy_rad[-1, 2])),
-        ),
+        vehicle=vehicle,
         imu=dataclasses.replace(
             imu,
             gyro_turn_on_bias_rps=_vec3(bias_g),
@@ -280,6 +290,40 @@ def continuation(
         ),
         bridge=previous.bridge,
         t0_s=float(truth.t[-1]) + pause_s,
+    )
+
+
+def _on_the_ground_of(
+    vehicle: VehicleConfig, previous: Scenario, truth: Truth, previous_seed: int
+) -> VehicleConfig:
+    """``vehicle`` on the terrain of ``previous``'s run (seed ``previous_seed``, truth
+    ``truth``), its origin where that run stopped."""
+    ground = previous.vehicle
+    end_ne = truth.pos_ned_m[-1, :2]
+    return dataclasses.replace(
+        vehicle,
+        side_slope_min_deg=ground.side_slope_min_deg,
+        side_slope_max_deg=ground.side_slope_max_deg,
+        side_slope_wavelength_m=ground.side_slope_wavelength_m,
+        along_slope_deg=ground.along_slope_deg,
+        bump_amplitude_m=ground.bump_amplitude_m,
+        bump_wavelength_min_m=ground.bump_wavelength_min_m,
+        bump_wavelength_max_m=ground.bump_wavelength_max_m,
+        bump_count=ground.bump_count,
+        terrain_heading_deg=(
+            ground.swath_heading_deg
+            if ground.terrain_heading_deg is None
+            else ground.terrain_heading_deg
+        ),
+        terrain_seed=(
+            _seeded(previous, previous_seed)[0]
+            if ground.terrain_seed is None
+            else ground.terrain_seed
+        ),
+        terrain_origin_ne_m=(
+            ground.terrain_origin_ne_m[0] + float(end_ne[0]),
+            ground.terrain_origin_ne_m[1] + float(end_ne[1]),
+        ),
     )
 
 

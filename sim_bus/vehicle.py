@@ -85,18 +85,27 @@ class VehicleConfig:
     bump_count: int = 8
     antenna_lever_arm_m: tuple[float, float, float] = (0.3, 0.0, -3.0)  # body FRD
     imu_lever_arm_m: tuple[float, float, float] = (0.5, 0.1, -1.0)  # body FRD
+    # The ground of another run (a restart where that run stopped: sim_bus.scenarios.
+    # continuation): its terrain's swath heading and bump seed (None: this run's own), and
+    # where this run's origin lies in that terrain's frame (north, east, m).
+    terrain_heading_deg: float | None = None
+    terrain_seed: int | None = None
+    terrain_origin_ne_m: tuple[float, float] = (0.0, 0.0)
 
     def terrain(self, seed: int) -> Terrain:
-        """The terrain of this field; ``seed`` draws the bumps."""
+        """The terrain of this field; ``seed`` draws the bumps (unless ``terrain_seed``)."""
         amp, k, phase = random_bumps(
             self.bump_amplitude_m,
             self.bump_wavelength_min_m,
             self.bump_wavelength_max_m,
             self.bump_count,
-            seed,
+            seed if self.terrain_seed is None else self.terrain_seed,
         )
+        heading_deg = self.swath_heading_deg
+        if self.terrain_heading_deg is not None:
+            heading_deg = self.terrain_heading_deg
         return Terrain(
-            swath_heading_rad=math.radians(self.swath_heading_deg),
+            swath_heading_rad=math.radians(heading_deg),
             side_grad_min=math.tan(math.radians(self.side_slope_min_deg)),
             side_grad_max=math.tan(math.radians(self.side_slope_max_deg)),
             side_wavelength_m=self.side_slope_wavelength_m,
@@ -368,8 +377,13 @@ def simulate_vehicle(
     v_h = (direction * speed)[:, None] * tangent
     a_h = direction[:, None] * (accel[:, None] * tangent + (speed * psi_dot)[:, None] * normal)
 
-    # Vertical motion on the terrain, D = -h(x_h).
-    terr = cfg.terrain(seed).derivatives(x_h)
+    # Vertical motion on the terrain, D = -h(x_h) (h of the terrain's frame, 0 at the origin
+    # when that frame is another run's: this run's origin is already at that height).
+    terrain = cfg.terrain(seed)
+    shift = np.asarray(cfg.terrain_origin_ne_m, dtype=float)
+    terr = terrain.derivatives(x_h + shift)
+    if shift.any():
+        terr = replace(terr, h_m=terr.h_m - terrain.derivatives(shift[None, :]).h_m[0])
     hv = np.einsum("nij,nj->ni", terr.hess, v_h)
     ha = np.einsum("nij,nj->ni", terr.hess, a_h)
     tvv = np.einsum("nijk,ni,nj->nk", terr.third, v_h, v_h)

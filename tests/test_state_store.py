@@ -27,6 +27,7 @@ from gateway.config.gateway_config import (
     VehicleSection,
     load_config,
 )
+from gateway.fusion.rest_check import RestRecord
 from gateway.state.keeper import StateKeeper
 from gateway.state.store import (
     EARTH_RATE_RPS,
@@ -71,6 +72,17 @@ STATE = StoredState(
     written_s=T0,
     last=LastPose(T0, 52.2, 10.5, 80.25, 271.5),
     mounting=Mounting((0.5, -1.25, 90.0), (0.05, 0.05, 0.2), (0.0, 0.0, 0.0)),
+    rest=RestRecord(
+        T0,
+        52.2,
+        10.5,
+        0.014,
+        (0.19, -0.35, -9.79),
+        (1e-3, -2e-3, 5e-4),
+        (0.001,) * 3,
+        (3e-4,) * 3,
+        30.0,
+    ),
 )
 
 
@@ -86,9 +98,14 @@ def test_round_trip_keeps_every_field(tmp_path: Path) -> None:
         "base_rpy_deg": [0.0, 0.0, 0.0],
     }
     assert leftover_temporaries(path) == []
-    # the mounting is optional
-    bare = replace(STATE, mounting=None, last=None)
+    assert doc["rest"]["f_b_mps2"] == [0.19, -0.35, -9.79] and doc["rest"]["duration_s"] == 30.0
+    # the mounting and the rest are optional, the rest also as a key (a file of an older navgw)
+    bare = replace(STATE, mounting=None, last=None, rest=None)
     write_state(path, bare)
+    assert read_state(path) == bare
+    older = json.loads(path.read_text())
+    del older["rest"]
+    path.write_text(json.dumps(older))
     assert read_state(path) == bare
     # a mounting entry that does not say what it was estimated against is none (schema 1)
     del doc["mounting"]["base_rpy_deg"]
@@ -351,6 +368,8 @@ def test_navgw_state_show_and_clear(tmp_path: Path, capsys: pytest.CaptureFixtur
     assert "mounting estimate roll, pitch, yaw +0.500+/-0.050, -1.250+/-0.050" in out
     assert "against the configured [vehicle] imu_mounting_rpy_deg = [0.00, 0.00, 0.00]" in out
     assert "not applied at start: not determined: 1-sigma yaw 0.200 deg, above 0.15" in out
+    assert "last rest 52.2000000 10.5000000 for 30 s" in out
+    assert "mean specific force x, y, z +19.37, -35.69, -998.30 mg" in out
     # shown against another config: it says what does not fit
     assert main(["state", "show", "--dir", str(tmp_path)]) == 0
     assert "does not fit the config: imu_lever_arm_m is [0.5, 0.1, -1]" in capsys.readouterr().out

@@ -16,7 +16,9 @@ import logging
 import math
 import shutil
 import time
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any
 
 import pytest
 
@@ -39,7 +41,7 @@ from gateway.service.live_loop import GatewayService
 from gateway.service.timebase import TimeBase
 from gateway.state.keeper import StateKeeper
 from gateway.state.store import STATE_FILE, read_state
-from sim_bus.scenarios import SCENARIOS, SimRun, continuation, generate
+from sim_bus.scenarios import SCENARIOS, Scenario, SimRun, continuation, generate
 from sim_bus.truth import Truth
 
 SHORT = SCENARIOS["short"]
@@ -54,6 +56,7 @@ SEED = 3  # true accelerometer bias at the restart (0.053, -0.084) m/s^2: a cold
 class Runs:
     second: SimRun
     state_dir: Path  # what the first run learned
+    first_truth: Truth
 
 
 @pytest.fixture(scope="module")
@@ -61,12 +64,14 @@ def runs(tmp_path_factory: pytest.TempPathFactory) -> Runs:
     out = tmp_path_factory.mktemp("warm-start")
     first = generate(FIRST, out / "first", seed=SEED)
     truth = Truth.load(first.truth_file)
-    second = generate(continuation(FIRST, truth, SECOND, pause_s=120.0), out / "second", SEED)
+    second = generate(
+        continuation(FIRST, truth, SECOND, pause_s=120.0, previous_seed=SEED), out / "second", SEED
+    )
     state_dir = out / "state"
     argv = ["replay", "--can", str(first.imu_log), "--nmea", str(first.gnss_log)]
     argv += ["--out", str(out / "first.log"), "--config", str(first.config_file)]
     assert main([*argv, "--engine", "ekf", "--state-dir", str(state_dir)]) == 0
-    return Runs(second, state_dir)
+    return Runs(second, state_dir, truth)
 
 
 def start(run: SimRun, engine: Engine, state_dir: Path | None) -> tuple[StartAccuracy, bool]:
@@ -123,6 +128,70 @@ def test_a_corrupt_or_foreign_store_is_reported_and_ignored(
         assert len(warnings) == 1 and reason in warnings[0], warnings
         entry = read_state(state_dir / STATE_FILE).bands[0]
         assert entry.engine == "observer" and entry.t_s > doc["bands"][0]["t_s"]
+
+
+def _power_on(scenario: Scenario) -> Scenario:
+    """The same IMU after a power cycle: its accelerometer turn-on bias 10 mg off in x (two
+    sigma of the simulator's turn-on spread)."""
+    imu = scenario.imu
+    bias = imu.accel_turn_on_bias_mps2
+    assert bias is not None  # (a continuation's: where the first run's ended)
+    turned_on = (bias[0] + 0.1, bias[1], bias[2])
+    return dataclasses.replace(
+        scenario, imu=dataclasses.replace(imu, accel_turn_on_bias_mps2=turned_on)
+    )
+
+
+def _moved(doc: dict[str, Any]) -> None:
+    doc["rest"]["lat_deg"] += 1e-4  # 11 m north
+
+
+def _no_rest(doc: dict[str, Any]) -> None:
+    doc["rest"] = None
+
+
+def _first_pass_at_once(scenario: Scenario) -> Scenario:
+    vehicle = dataclasses.replace(scenario.vehicle, start_stop_s=0.0)
+    return dataclasses.replace(scenario, vehicle=vehicle)
+
+
+@pytest.mark.parametrize(
+    ("case", "scenario_change", "store_change", "reason"),
+    [
+        ("power-on", _power_on, None, "accel x +"),
+        ("moved", None, _moved, "the vehicle stands 11."),
+        ("no rest", None, _no_rest, "no rest stored with it"),
+        ("drove off", _first_pass_at_once, None, "the vehicle drove off before it had stood 3 s"),
+    ],
+)
+def test_a_seed_that_cannot_be_checked_at_rest_on_the_same_spot_is_not_used(
+    runs: Runs,
+    tmp_path: Path,
+    caplog: pytest.LogCaptureFixture,
+    case: str,
+    scenario_change: Callable[[Scenario], Scenario] | None,
+    store_change: Callable[[dict[str, Any]], None] | None,
+    reason: str,
+) -> None:
+    """The learned state is used only where the vehicle stopped, once the IMU measures at
+    rest what it measured there: after a power cycle that moved a turn-on bias by 10 mg,
+    11 m from the stored rest, with no rest stored, or driven off at once, the start is
+    cold (the output byte for byte the cold start's) with one warning saying why."""
+    second = runs.second
+    if scenario_change is not None:
+        scenario = continuation(FIRST, runs.first_truth, SECOND, 120.0, previous_seed=SEED)
+        second = generate(scenario_change(scenario), tmp_path / "second", SEED)
+    state_dir = tmp_path / "state"
+    shutil.copytree(runs.state_dir, state_dir)
+    if store_change is not None:
+        doc = json.loads((state_dir / STATE_FILE).read_text())
+        store_change(doc)
+        (state_dir / STATE_FILE).write_text(json.dumps(doc))
+    cold = _replay(second, tmp_path / "cold.log", None)
+    with caplog.at_level(logging.WARNING, logger="gateway.fusion"):
+        assert _replay(second, tmp_path / f"{case}.log", state_dir) == cold
+    (warning,) = (r.getMessage() for r in caplog.records if r.name.startswith("gateway.fusion"))
+    assert warning.startswith("learned state not used") and reason in warning, warning
 
 
 def test_an_engine_restarted_after_an_imu_gap_keeps_what_it_learned(runs: Runs) -> None:

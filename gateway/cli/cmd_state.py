@@ -9,6 +9,7 @@ import time
 from datetime import datetime, timezone
 from pathlib import Path
 
+from drivers.units import MG_MPS2
 from gateway.config.config_schema import ConfigError
 from gateway.config.gateway_config import GatewayConfig, load_config
 from gateway.state.keeper import mounting_problem
@@ -114,6 +115,16 @@ def state_text(state: StoredState, path: Path, config: GatewayConfig, now: float
         lines.append(
             f"  last position {last.lat_deg:.7f} {last.lon_deg:.7f} {last.alt_m:.2f} m, "
             f"heading {heading} ({_when(last.t_s, now)}; shown only, not used at start)"
+        )
+    if state.rest is None:
+        lines.append("  no rest stored: the biases are not used at start (nothing to check them)")
+    else:
+        r = state.rest
+        f_mg = ", ".join(f"{x / MG_MPS2:+.2f}" for x in r.f_b_mps2)
+        lines.append(
+            f"  last rest {r.lat_deg:.7f} {r.lon_deg:.7f} for {r.duration_s:.0f} s "
+            f"({_when(r.t_s, now)}): mean specific force x, y, z {f_mg} mg; a start there "
+            "that measures the same uses the biases"
         )
     if state.mounting is not None:
         problem = mounting_problem(config, state)

@@ -29,7 +29,11 @@ Warm start: the shell may give a ``warm_start`` callback (:mod:`gateway.state`),
 core asks once, with the IMU's temperature and the time of the first IMU_AUX (1 Hz), for
 the learned state to seed the engine with; without IMU_AUX within :data:`WARM_START_WAIT_S`
 of the first sample the engine stays cold (the state is kept per temperature, and a guess
-of the temperature would be a guess of the biases).
+of the temperature would be a guess of the biases). The seed is used only once the vehicle
+has stood :data:`gateway.fusion.rest_check.MIN_REST_S` on the spot where it last stopped and
+the IMU measures there what it measured then (:func:`gateway.fusion.rest_check.check_seed`):
+a new power-on may have moved the biases. Driven off before, the start is cold. The rest
+itself is followed (:attr:`FusionCore.rest`) whenever the shell keeps a state.
 """
 
 from __future__ import annotations
@@ -51,6 +55,13 @@ from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.solution import LearnedState, LearningEstimator, Mode, Solution
 from gateway.fusion.engines import epoch_clock, make_engine
 from gateway.fusion.output_guard import OutputGuard
+from gateway.fusion.rest_check import (
+    MIN_REST_S,
+    STILL_SPEED_MPS,
+    RestMean,
+    WarmSeed,
+    check_seed,
+)
 from gateway.isobus.address_claim import AddressClaimer, Name
 from gateway.isobus.device_info import ProductInfo
 from gateway.isobus.j1939 import DEFAULT_SOURCE_ADDRESS, Pgn
@@ -71,8 +82,9 @@ RESTART_GAP_S = 1.0
 #: first IMU_AUX; the bridge sends it at 1 Hz), then the engine stays cold.
 WARM_START_WAIT_S = 3.0
 
-#: (IMU temperature degC, time s) -> the learned state to seed the engine with, or None.
-WarmStart = Callable[[float, float], LearnedState | None]
+#: (IMU temperature degC, time s) -> the learned state to seed the engine with, and the rest
+#: to check it against; or None.
+WarmStart = Callable[[float, float], WarmSeed | None]
 
 
 #: What an input that sends nothing returns (no generator per IMU sample); callers may skip
@@ -114,7 +126,9 @@ class FusionCore:
         imu_counters: ImuCounters | None = None,
         make_engine: Callable[[], LearningEstimator] | None = None,
         warm_start: WarmStart | None = None,
+        track_rest: bool = False,
     ) -> None:
+        """``track_rest``: follow the rests for the learned state (the shell keeps one)."""
         self.engine = engine
         self._make_engine = make_engine  # for a restart; None: the engine carries on
         self.scheduler = scheduler
@@ -133,6 +147,8 @@ class FusionCore:
         self._t_first_imu: float | None = None
         self.imu_temp_c: float | None = None  # the last IMU_AUX's temperature
         self.warm_started = False  # the engine started from a learned state
+        self.rest = RestMean() if track_rest or warm_start is not None else None
+        self._pending_seed: WarmSeed | None = None  # to check at rest on the same spot
 
     @classmethod
     def from_config(
@@ -140,9 +156,11 @@ class FusionCore:
         config: GatewayConfig,
         imu_counters: ImuCounters | None = None,
         warm_start: WarmStart | None = None,
+        track_rest: bool = False,
     ) -> FusionCore:
         """Engine, scheduler, claimer and network as the config says; ``warm_start``: where
-        the learned state comes from (None: every start is cold)."""
+        the learned state comes from (None: every start is cold); ``track_rest``: follow the
+        rests for the learned state."""
         clock = epoch_clock(config)  # one for every engine of this core (restarts included)
         isobus = config.isobus
         name = Name(
@@ -179,6 +197,7 @@ class FusionCore:
             network=NetworkManager(claimer, product, periodic=scheduler.rates_hz),
             imu_counters=imu_counters,
             warm_start=warm_start,
+            track_rest=track_rest,
         )
 
     def start(self, now: float) -> Iterator[can.Message]:
@@ -194,6 +213,10 @@ class FusionCore:
         if isinstance(item, GnssFix):
             self.stats.gnss_fixes += 1
             self.engine.gnss(item)
+            if self.rest is not None:
+                self.rest.gnss(item)
+                if self._pending_seed is not None:
+                    self._drove_off(item)
         else:
             self.stats.imu_aux += 1  # temperature, supply, DIAG_STAT: counted by the decoder
             self.imu_temp_c = item.temp_c
@@ -202,19 +225,44 @@ class FusionCore:
         return self._counted(self._silent_status(item.t))
 
     def _seed_engine(self, temp_c: float, t: float) -> None:
-        """Seed the engine with the learned state for ``temp_c`` (the warm start, once)."""
+        """The learned state for ``temp_c`` (asked once), to check at rest before use."""
         warm_start, self._warm_start = self._warm_start, None
         assert warm_start is not None
-        learned = warm_start(temp_c, t)
+        self._pending_seed = warm_start(temp_c, t)
+        if self._pending_seed is not None:
+            self._check_seed(t)
+
+    def _check_seed(self, t: float) -> None:
+        """Seed the engine once a rest of the start can be compared with the stored one."""
+        seed, rest = self._pending_seed, self.rest
+        assert seed is not None and rest is not None
+        if seed.rest is None:
+            learned, why = None, "no rest stored with it to check it against"
+        else:
+            now = rest.current()
+            if now is None:
+                return
+            learned, why = check_seed(seed.learned, seed.rest, now)
+        self._pending_seed = None
         if learned is None:
-            return
-        if self.engine.seed(learned):
+            log.warning("learned state not used at t=%.3f: %s; cold start", t, why)
+        elif self.engine.seed(learned):
             self.warm_started = True
-            log.info("warm start at t=%.3f, IMU at %.1f degC: %s", t, temp_c, learned_text(learned))
+            log.info("warm start at t=%.3f, %s: %s", t, why, learned_text(learned))
         else:
             log.warning(
                 "warm start at t=%.3f not applied: the engine had begun to learn on its own "
                 "(or the learned state is not valid); cold start", t,
+            )  # fmt: skip
+
+    def _drove_off(self, fix: GnssFix) -> None:
+        """A fix of a moving vehicle before the seed was checked: a cold start."""
+        if fix.sog_mps is not None and fix.sog_mps >= STILL_SPEED_MPS:
+            self._pending_seed = None
+            log.warning(
+                "learned state not used at t=%.3f: the vehicle drove off before it had stood "
+                "%.0f s on the spot where it last stopped, which would have checked it; cold "
+                "start", fix.t, MIN_REST_S,
             )  # fmt: skip
 
     def on_imu(self, sample: ImuSample) -> Iterator[can.Message]:
@@ -231,6 +279,11 @@ class FusionCore:
             self._restart_engine(last if gap else None, t)
         self._last_sample = sample
         self.engine.imu(sample)
+        rest = self.rest
+        if rest is not None:
+            rest.imu(sample)
+            if self._pending_seed is not None:
+                self._check_seed(t)
         # Most samples send nothing: a few comparisons, no call, no generator.
         claimer = self.claimer
         polled = (

@@ -197,6 +197,7 @@ class GatewayService:
             config,
             self.imu_decoder.counters,
             warm_start=self.state.warm_start if self.state and self.state.stored else None,
+            track_rest=self.state is not None,
         )
         self.mounting = (
             MountingWatch(config, config.calibration.report_interval_s, self.applied)

@@ -37,8 +37,8 @@ from pathlib import Path
 
 from gateway.calibration.mounting import AXES, CalibrationConfig
 from gateway.config.gateway_config import GatewayConfig
-from gateway.estimation.solution import LearnedState
 from gateway.fusion.fusion_core import FusionCore, learned_text
+from gateway.fusion.rest_check import WarmSeed
 from gateway.state.store import (
     STATE_FILE,
     TEMP_RANGE_C,
@@ -166,9 +166,10 @@ class StateKeeper:
             reason,
         )
 
-    def warm_start(self, temp_c: float, t_s: float) -> LearnedState | None:
+    def warm_start(self, temp_c: float, t_s: float) -> WarmSeed | None:
         """The fusion core's callback: the learned state for the IMU at ``temp_c`` at ``t_s``
-        (host clock), or None (cold start; a warning says why when a store was there)."""
+        (host clock) with the rest to check it against, or None (cold start; a warning says
+        why when a store was there)."""
         state = self.stored
         if state is None:
             return None
@@ -190,10 +191,10 @@ class StateKeeper:
         age_s = t_s - entry.t_s
         age = f"{age_s / 3600.0:.1f} h" if age_s >= 0.0 else "an unknown time (clock went back)"
         log.info(
-            "learned state %s: biases of %.1f degC, %s old, grown to %s",
-            self.path, entry.temp_c, age, learned_text(learned),
+            "learned state %s: biases of %.1f degC, %s old, grown to %s; used once checked at "
+            "rest where the vehicle stopped", self.path, entry.temp_c, age, learned_text(learned),
         )  # fmt: skip
-        return learned
+        return WarmSeed(learned, state.rest)
 
     # --- saving -------------------------------------------------------------------------
 
@@ -225,9 +226,13 @@ class StateKeeper:
                 state, last=LastPose(sol.t, sol.lat_deg, sol.lon_deg, sol.alt_m, heading)
             )
         kept = self._kept_mounting(mounting)
-        if not (improved or kept is not self.mounting or force):
+        rest = core.rest.record() if core.rest is not None else None
+        new_rest = rest is not None and rest != state.rest
+        if not (improved or kept is not self.mounting or new_rest or force):
             return None
-        self.stored = dataclasses.replace(state, mounting=kept)
+        self.stored = dataclasses.replace(
+            state, mounting=kept, rest=rest if rest is not None else state.rest
+        )
         self.mounting = kept
         return self.stored
 

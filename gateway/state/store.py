@@ -11,6 +11,10 @@ gateway writes every ``save_interval_s`` and at a clean stop and reads at start:
   (:class:`BandEntry`);
 - ``last``: the last reference-point position and heading (shown, not used: see
   :mod:`gateway.state.keeper`);
+- ``rest``: the last stretch the vehicle stood still (:class:`gateway.fusion.rest_check.
+  RestRecord`: where, and the IMU's mean specific force and rate there), which a warm start
+  must find again before it uses the biases; or null (optional in schema 1 like ``mounting``:
+  a file without it reads as none, and its biases are then not used);
 - ``mounting``: the service's live IMU mounting estimate, once determined (:class:`Mounting`),
   with the configured mounting it was made against (``base_rpy_deg``); or null. The field was
   optional in schema 1 from the start, so ``base_rpy_deg`` came without a new version: a
@@ -41,11 +45,12 @@ from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
-from drivers.units import DEG_TO_RAD, MG_MPS2
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, MG_MPS2
 from gateway.calibration.mounting import AXES
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.solution import LearnedState
+from gateway.fusion.rest_check import RestRecord
 
 Vec3 = tuple[float, float, float]
 
@@ -175,6 +180,7 @@ class StoredState:
     written_s: float
     last: LastPose | None = None
     mounting: Mounting | None = None
+    rest: RestRecord | None = None
 
 
 # =================================================================== the bias model
@@ -367,6 +373,7 @@ def to_json(state: StoredState) -> dict[str, Any]:
         ],
         "last": None,
         "mounting": None,
+        "rest": None,
     }
     if state.last is not None:
         last = state.last
@@ -376,6 +383,19 @@ def to_json(state: StoredState) -> dict[str, Any]:
             "lon_deg": last.lon_deg,
             "alt_m": last.alt_m,
             "heading_deg": last.heading_deg,
+        }
+    if state.rest is not None:
+        r = state.rest
+        doc["rest"] = {
+            "t_s": r.t_s,
+            "lat_deg": r.lat_deg,
+            "lon_deg": r.lon_deg,
+            "sigma_m": r.sigma_m,
+            "f_b_mps2": list(r.f_b_mps2),
+            "w_b_rps": list(r.w_b_rps),
+            "sigma_f_mps2": list(r.sigma_f_mps2),
+            "sigma_w_rps": list(r.sigma_w_rps),
+            "duration_s": r.duration_s,
         }
     if state.mounting is not None:
         doc["mounting"] = {
@@ -495,12 +515,27 @@ def from_json(doc: Any) -> StoredState:
         rpy, sigma = mr.vec3("rpy_deg", -360.0, 360.0), mr.vec3("sigma_deg", 0.0, 360.0)
         if mr.table.get("base_rpy_deg") is not None:  # none: against an unknown mounting
             mounting = Mounting(rpy, sigma, mr.vec3("base_rpy_deg", -360.0, 360.0))
+    rest = None
+    if top.table.get("rest") is not None:
+        rr = top.sub("rest")
+        rest = RestRecord(
+            t_s=rr.number("t_s", 0.0),
+            lat_deg=rr.number("lat_deg", -90.0, 90.0),
+            lon_deg=rr.number("lon_deg", -180.0, 180.0),
+            sigma_m=rr.number("sigma_m", 0.0, 1e4),
+            f_b_mps2=rr.vec3("f_b_mps2", -3.0 * GRAVITY_MPS2, 3.0 * GRAVITY_MPS2),
+            w_b_rps=rr.vec3("w_b_rps", -MAX_GYRO_BIAS_RPS, MAX_GYRO_BIAS_RPS),
+            sigma_f_mps2=rr.vec3("sigma_f_mps2", 0.0, GRAVITY_MPS2),
+            sigma_w_rps=rr.vec3("sigma_w_rps", 0.0, MAX_GYRO_SIGMA_RPS),
+            duration_s=rr.number("duration_s", 0.0),
+        )
     return StoredState(
         identity=identity,
         bands=tuple(sorted(bands, key=lambda e: e.temp_c)),
         written_s=top.number("written_s", 0.0),
         last=last,
         mounting=mounting,
+        rest=rest,
     )
 
 
