@@ -12,7 +12,7 @@ import pytest
 from drivers.samples import FixQuality, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, MG_MPS2
 from gateway.estimation.solution import LearnedState
-from gateway.fusion.rest_check import MIN_REST_S, RestMean, RestRecord, check_seed
+from gateway.fusion.rest_check import MIN_REST_S, SETTLE_S, RestMean, RestRecord, check_seed
 
 DT = 1.0 / 204.8
 LEARNED = LearnedState(
@@ -55,22 +55,28 @@ def _rest(mean: RestMean, t0: float, seconds: float, f: tuple[float, float, floa
 
 
 def test_the_rest_mean_and_its_sigma() -> None:
-    """The mean of 10 s of samples with 0.2 m/s^2 of vibration, its 1-sigma 0.2 / sqrt(n);
-    none before MIN_REST_S; a turn or a moving fix ends it and keeps it as the last one."""
+    """The mean of the samples with 0.2 m/s^2 of vibration after the first SETTLE_S, its
+    1-sigma 0.2 / sqrt(n); none before MIN_REST_S of it; a turn or a moving fix ends it and
+    keeps it as the last one."""
     mean = RestMean()
-    _rest(mean, 0.0, MIN_REST_S - 0.5, (0.2, -0.35, -9.79))
+    _rest(mean, 0.0, SETTLE_S + MIN_REST_S - 0.5, (0.2, -0.35, -9.79))
     assert mean.current() is None
-    t = _rest(mean, MIN_REST_S - 0.5, 10.0, (0.2, -0.35, -9.79))
+    t = _rest(mean, SETTLE_S + MIN_REST_S - 0.5, 10.0, (0.2, -0.35, -9.79))
     now = mean.current()
     assert now is not None and now.duration_s == pytest.approx(MIN_REST_S + 9.5, abs=0.01)
     n = (MIN_REST_S + 9.5) / DT
     assert now.sigma_f_mps2 == pytest.approx((0.2 / math.sqrt(n),) * 3, rel=0.1)
     assert now.f_b_mps2 == pytest.approx((0.2, -0.35, -9.79), abs=4.0 * 0.2 / math.sqrt(n))
-    mean.imu(ImuSample(t, DT, (0.0, 0.0, 0.1), (0.0, 0.0, -9.8), 0))  # a turn: the end
-    assert mean.current() is None and mean.last == now and mean.record() == now
+    mean.imu(ImuSample(t, DT, (0.0, 0.0, 0.1), (0.0, 0.0, -9.8), 0))  # one sample: noise
+    assert mean.current() is not None
+    for k in range(1, 30):  # 0.15 s at 5.7 deg/s: a turn, the end
+        mean.imu(ImuSample(t + k * DT, DT, (0.0, 0.0, 0.1), (0.0, 0.0, -9.8), 0))
+    assert mean.current() is None and mean.last is not None and mean.record() == mean.last
+    assert mean.last.duration_s >= now.duration_s
+    t += 30 * DT
     mean.gnss(_fix(t + 1.0, 1.5))  # driving: no rest until a fix says standing again
     mean.imu(ImuSample(t + 1.0, DT, (0.0, 0.0, 0.0), (0.0, 0.0, -9.8), 0))
-    assert mean.current() is None and mean.record() == now
+    assert mean.current() is None and mean.record() == mean.last
 
 
 def test_a_seed_at_the_same_spot_with_the_same_means_is_taken_with_its_sigma_grown() -> None:

@@ -28,13 +28,20 @@ from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m
 from gateway.estimation.solution import LearnedState
 
-#: A rest this long gives the means (with 0.15 m/s^2 of engine vibration per sample, the
-#: specific force's mean is good to 0.7 mg after 3 s at 204.8 Hz).
+#: A rest this long (after SETTLE_S) gives the means (with 0.2 m/s^2 of engine vibration per
+#: sample, the specific force's mean is good to 0.8 mg after 3 s at 204.8 Hz).
 MIN_REST_S = 3.0
 #: Standing: GNSS speed below this (m/s) ...
 STILL_SPEED_MPS = 0.1
-#: ... and the body rate below this (rad/s): not turning, not rocking.
+#: ... and the body rate, low-passed over RATE_LP_S, below this (rad/s): not turning, not
+#: rocking. (Single samples at rest exceed it now and then: the ADIS16334's rate noise is
+#: ~0.6 deg/s a sample at 204.8 Hz.)
 QUIET_RATE_RPS = 2.0 * DEG_TO_RAD
+RATE_LP_S = 0.1
+#: The first second of a stretch is left out of its means: GNSS speed falls below
+#: STILL_SPEED_MPS while the last of the braking goes on, and a vehicle rocks on its
+#: suspension after it stops.
+SETTLE_S = 1.0
 #: The antenna within this of where it stood (m), beyond three sigma of the two positions:
 #: a parked vehicle has not moved.
 SAME_SPOT_M = 0.5
@@ -77,9 +84,11 @@ class RestMean:
         self.last: RestRecord | None = None  # the last stretch long enough, ended
         self._fix: GnssFix | None = None  # the last fix, while it says the vehicle stands
         self._sigma_m = 0.0  # its horizontal 1-sigma
+        self._w_lp = [0.0, 0.0, 0.0]  # body rate low-passed over RATE_LP_S, while standing
         self._restart()
 
     def _restart(self) -> None:
+        self._t_still_s: float | None = None  # when the stretch began (its means later)
         self._n = 0
         self._t0_s = self._t1_s = 0.0
         self._sum = [0.0] * 6  # f (3), w (3)
@@ -102,14 +111,22 @@ class RestMean:
         else:
             self._end()
             self._fix = None
+            self._w_lp = [0.0, 0.0, 0.0]
 
     def imu(self, sample: ImuSample) -> None:
         """A sample: part of the stretch at rest if quiet while a fix says standing."""
         if self._fix is None:
             return
         w, f = sample.w_ib_b, sample.f_ib_b
-        if w[0] * w[0] + w[1] * w[1] + w[2] * w[2] >= QUIET_RATE_RPS * QUIET_RATE_RPS:
+        lp, a = self._w_lp, sample.dt / (RATE_LP_S + sample.dt)
+        for i in range(3):
+            lp[i] += a * (w[i] - lp[i])
+        if lp[0] * lp[0] + lp[1] * lp[1] + lp[2] * lp[2] >= QUIET_RATE_RPS * QUIET_RATE_RPS:
             self._end()
+            return
+        if self._t_still_s is None:
+            self._t_still_s = sample.t
+        if sample.t - self._t_still_s < SETTLE_S:
             return
         if self._n == 0:
             self._t0_s = sample.t
