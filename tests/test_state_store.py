@@ -342,7 +342,8 @@ def test_state_section_of_the_config(tmp_path: Path) -> None:
     assert load_config(toml).state == StateSection(
         enabled=True, directory="/tmp/x", save_interval_s=60.0
     )
-    assert not StateSection().enabled  # opt-in: a power-cycled IMU's biases may not repeat
+    # on: a seed is used only once checked at rest where the vehicle stopped (rest_check)
+    assert StateSection().enabled
     toml.write_text("[state]\nsave_interval_s = 1.0\n")
     with pytest.raises(ValueError, match=r"state.save_interval_s = 1.0: expected a value in"):
         load_config(toml)

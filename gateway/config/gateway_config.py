@@ -253,10 +253,10 @@ class StateSection:
     """[state]: what the gateway learned of its IMU, kept across starts (warm start)."""
 
     enabled: bool = field(
-        default=False,
+        default=True,
         metadata=_doc(
-            "load the learned biases at start, save them while running and at stop; only "
-            "where the IMU's biases carry over a restart (see README, Warm start)"
+            "load the learned biases at start (used once checked at rest where the vehicle "
+            "stopped), save them while running and at stop (see README, Warm start)"
         ),
     )
     directory: str = field(
