@@ -86,6 +86,7 @@ from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
+from gateway.estimation.lever_arm import lever_arm_position_ned, lever_arm_velocity_ned
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
     Convergence,
@@ -750,23 +751,10 @@ class EkfEngine:
         ins = self._ins
         if ins is None or self._p is None:
             return None
-        c = ins.c_bn9
-        wx, wy, wz = ins.w_b_lp_rps
-        lx, ly, lz = self._l_imu_b_f
-        ux, uy, uz = wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx  # w x l
+        dn, de, dd = lever_arm_position_ned(ins.c_bn9, self._l_imu_b_f)
+        un, ue, ud = lever_arm_velocity_ned(ins.c_bn9, ins.w_b_lp_rps, self._l_imu_b_f)
         p, v = ins.p_ned_m, ins.v_ned_mps
-        return (
-            (
-                p[0] - (c[0] * lx + c[1] * ly + c[2] * lz),
-                p[1] - (c[3] * lx + c[4] * ly + c[5] * lz),
-                p[2] - (c[6] * lx + c[7] * ly + c[8] * lz),
-            ),
-            (
-                v[0] - (c[0] * ux + c[1] * uy + c[2] * uz),
-                v[1] - (c[3] * ux + c[4] * uy + c[5] * uz),
-                v[2] - (c[6] * ux + c[7] * uy + c[8] * uz),
-            ),
-        )
+        return (p[0] - dn, p[1] - de, p[2] - dd), (v[0] - un, v[1] - ue, v[2] - ud)
 
     def solution(self) -> Solution:
         """The current solution at the time of the last IMU sample."""

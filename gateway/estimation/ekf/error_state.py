@@ -53,6 +53,7 @@ from gateway.estimation.attitude import (
     to_mat9,
 )
 from gateway.estimation.ekf.ekf_config import EkfTuning
+from gateway.estimation.lever_arm import lever_arm_position_ned, lever_arm_velocity_ned
 
 Array = npt.NDArray[np.float64]
 Floats = Sequence[float] | Array  # a 3-vector as list, tuple or array
@@ -389,13 +390,7 @@ def fuse_position(
 
     Shapes (3,) except ``c_bn`` (3, 3). dz = dp - [C l]x phi + db.
     """
-    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c_bn.ravel().tolist()
-    lx, ly, lz = l_ant_b.tolist()
-    cl_n, cl_e, cl_d = (
-        c0 * lx + c1 * ly + c2 * lz,
-        c3 * lx + c4 * ly + c5 * lz,
-        c6 * lx + c7 * ly + c8 * lz,
-    )
+    cl_n, cl_e, cl_d = lever_arm_position_ned(to_mat9(c_bn), l_ant_b.tolist())
     h = _H_POSITION.copy()
     h[:, ATT] = _minus_skew(cl_n, cl_e, cl_d)
     (pn, pe, pd), (mn, me, md) = p_ned_m.tolist(), p_ant_meas_ned_m.tolist()
@@ -420,15 +415,10 @@ def fuse_velocity(
     dv_ant = dv - [C (w x l)]x phi + C [l]x dbg (the rate error is -dbg). ``v_ant_meas_ne_mps``
     shape (2,).
     """
-    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c_bn.ravel().tolist()
-    wx, wy, wz = w_b_rps.tolist()
+    c9 = to_mat9(c_bn)
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c9
     lx, ly, lz = l_ant_b.tolist()
-    ux, uy, uz = wy * lz - wz * ly, wz * lx - wx * lz, wx * ly - wy * lx  # w x l
-    vl_n, vl_e, vl_d = (
-        c0 * ux + c1 * uy + c2 * uz,
-        c3 * ux + c4 * uy + c5 * uz,
-        c6 * ux + c7 * uy + c8 * uz,
-    )
+    vl_n, vl_e, vl_d = lever_arm_velocity_ned(c9, w_b_rps.tolist(), (lx, ly, lz))
     h = _H_VELOCITY.copy()
     h[:, ATT] = _minus_skew(vl_n, vl_e, vl_d)
     # C [l]x, row i: (c_i1 lz - c_i2 ly, c_i2 lx - c_i0 lz, c_i0 ly - c_i1 lx)
