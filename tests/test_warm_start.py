@@ -223,10 +223,11 @@ def test_an_engine_restarted_after_an_imu_gap_keeps_what_it_learned(runs: Runs) 
 
 
 def test_the_service_saves_while_running_and_at_a_clean_stop(runs: Runs, tmp_path: Path) -> None:
-    """On a scaled clock (save_interval_s of 10 s is 0.1 s), a service whose engine has
-    learned (fed the second run) saves from its state task, then once more at stop."""
+    """On a scaled clock (save_interval_s of 10 s is 0.1 s), a service started from the first
+    run's store (warm: checked at rest where the first run stopped) and fed the second run
+    saves from its state task, then once more at stop, with the second run's last stop."""
     state_dir = tmp_path / "state"
-    state_dir.mkdir()
+    shutil.copytree(runs.state_dir, state_dir)
     base = load_config(runs.second.config_file).with_engine(Engine.EKF)
     config = dataclasses.replace(
         base,
@@ -242,7 +243,7 @@ def test_the_service_saves_while_running_and_at_a_clean_stop(runs: Runs, tmp_pat
             for _ in service.core.on_input(item):
                 pass
         keeper = service.state
-        assert keeper is not None
+        assert keeper is not None and service.core.warm_started
         running = asyncio.create_task(service.run())
         deadline = time.monotonic() + 10.0
         while keeper.saves == 0 and time.monotonic() < deadline:
@@ -260,6 +261,9 @@ def test_the_service_saves_while_running_and_at_a_clean_stop(runs: Runs, tmp_pat
     (entry,) = stored.bands
     assert entry.engine == "ekf" and inputs[-1].t - 1.0 < entry.t_s <= inputs[-1].t
     assert max(entry.accel_mps2.sigma[:2]) < 0.01
+    rest = stored.rest
+    assert rest is not None and inputs[-1].t - 1.0 < rest.t_s <= inputs[-1].t
+    assert rest.duration_s >= 3.0
 
 
 def test_without_the_imu_temperature_the_start_is_cold(
