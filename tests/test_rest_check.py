@@ -12,7 +12,14 @@ import pytest
 from drivers.samples import FixQuality, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, MG_MPS2
 from gateway.estimation.solution import LearnedState
-from gateway.fusion.rest_check import MIN_REST_S, SETTLE_S, RestMean, RestRecord, check_seed
+from gateway.fusion.rest_check import (
+    MIN_REST_S,
+    SETTLE_S,
+    RestMean,
+    RestRecord,
+    check_seed,
+    drove_off,
+)
 
 DT = 1.0 / 204.8
 LEARNED = LearnedState(
@@ -103,3 +110,27 @@ def test_a_seed_is_refused_where_the_imu_or_the_spot_differs(
     rate, or 1.1 m of position: not the IMU state or the place the seed was learned in."""
     learned, why = check_seed(LEARNED, THEN, replace(THEN, **change))  # type: ignore[arg-type]
     assert learned is None and reason in why, why
+
+
+@pytest.mark.parametrize(
+    ("quality", "sog_mps", "standing", "driving"),
+    [
+        (FixQuality.RTK_FIXED, 0.05, True, False),
+        (FixQuality.RTK_FIXED, 0.3, False, False),  # creeping: no rest, not yet driving off
+        (FixQuality.RTK_FIXED, 0.6, False, True),
+        (FixQuality.GNSS, 0.3, True, False),  # single point: 0.1 m/s of speed noise a axis
+        (FixQuality.GNSS, 0.7, False, True),
+    ],
+)
+def test_standing_and_driving_off_are_judged_against_the_fix_qualitys_speed_noise(
+    quality: FixQuality, sog_mps: float, standing: bool, driving: bool
+) -> None:
+    fix = replace(_fix(0.0, sog_mps), quality=quality)
+    mean = RestMean()
+    mean.gnss(fix)
+    t = 0.0
+    while t < SETTLE_S + MIN_REST_S + 0.1:
+        mean.imu(ImuSample(t, DT, (0.0, 0.0, 0.0), (0.0, 0.0, -9.8), 0))
+        t += DT
+    assert (mean.current() is not None) == standing
+    assert drove_off(fix) == driving

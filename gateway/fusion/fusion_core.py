@@ -57,10 +57,10 @@ from gateway.fusion.engines import epoch_clock, make_engine
 from gateway.fusion.output_guard import OutputGuard
 from gateway.fusion.rest_check import (
     MIN_REST_S,
-    STILL_SPEED_MPS,
     RestMean,
     WarmSeed,
     check_seed,
+    drove_off,
 )
 from gateway.isobus.address_claim import AddressClaimer, Name
 from gateway.isobus.device_info import ProductInfo
@@ -257,7 +257,7 @@ class FusionCore:
 
     def _drove_off(self, fix: GnssFix) -> None:
         """A fix of a moving vehicle before the seed was checked: a cold start."""
-        if fix.sog_mps is not None and fix.sog_mps >= STILL_SPEED_MPS:
+        if drove_off(fix):
             self._pending_seed = None
             log.warning(
                 "learned state not used at t=%.3f: the vehicle drove off before it had stood "

@@ -11,10 +11,11 @@ and pitch by the difference over g while the engine stated their learned accurac
 learned state is used only when both means agree within the seed's sigmas and their own
 noise; its accelerometer sigmas grow by the difference found.
 
-:class:`RestMean` follows the stretch at rest (GNSS speed below :data:`STILL_SPEED_MPS`, the
-body rate below :data:`QUIET_RATE_RPS`) sample by sample; :meth:`RestMean.record` gives it
-as a :class:`RestRecord` once it is :data:`MIN_REST_S` long, which the state store keeps
-(:mod:`gateway.state`); :func:`check_seed` compares two of them.
+:class:`RestMean` follows the stretch at rest (GNSS speed below :data:`STILL_SPEED_MPS` or
+its noise, the body rate below :data:`QUIET_RATE_RPS`) sample by sample;
+:meth:`RestMean.record` gives it as a :class:`RestRecord` once it is :data:`MIN_REST_S`
+long, which the state store keeps (:mod:`gateway.state`); :func:`check_seed` compares two of
+them; :func:`drove_off` says when waiting for a rest at the start is over.
 """
 
 from __future__ import annotations
@@ -25,14 +26,19 @@ from dataclasses import dataclass, replace
 from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, MG_MPS2
 from gateway.estimation.geodesy import LocalFrame
-from gateway.estimation.gnss_error import fix_position_sigma_m
+from gateway.estimation.gnss_error import fix_position_sigma_m, fix_velocity_sigma_mps
 from gateway.estimation.solution import LearnedState
 
 #: A rest this long (after SETTLE_S) gives the means (with 0.2 m/s^2 of engine vibration per
 #: sample, the specific force's mean is good to 0.8 mg after 3 s at 204.8 Hz).
 MIN_REST_S = 3.0
-#: Standing: GNSS speed below this (m/s) ...
+#: Standing: GNSS speed below this (m/s), or below SPEED_SIGMAS of the fix quality's speed
+#: noise (single point: 0.1 m/s a axis) ...
 STILL_SPEED_MPS = 0.1
+SPEED_SIGMAS = 4.0
+#: Driving off: GNSS speed above this (m/s) and above DRIVING_SIGMAS of its noise.
+DRIVING_SPEED_MPS = 0.5
+DRIVING_SIGMAS = 6.0
 #: ... and the body rate, low-passed over RATE_LP_S, below this (rad/s): not turning, not
 #: rocking. (Single samples at rest exceed it now and then: the ADIS16334's rate noise is
 #: ~0.6 deg/s a sample at 204.8 Hz.)
@@ -103,7 +109,7 @@ class RestMean:
             and fix.lon_deg is not None
             and sigma is not None
             and fix.sog_mps is not None
-            and fix.sog_mps < STILL_SPEED_MPS
+            and fix.sog_mps < max(STILL_SPEED_MPS, SPEED_SIGMAS * fix_velocity_sigma_mps(fix, 0.0))
         )
         if standing:
             assert sigma is not None
@@ -170,6 +176,12 @@ class RestMean:
     def record(self) -> RestRecord | None:
         """The stretch going on if long enough, else the last one that was."""
         return self.current() or self.last
+
+
+def drove_off(fix: GnssFix) -> bool:
+    """The fix says the vehicle is driving (not a standing receiver's speed noise)."""
+    noise = DRIVING_SIGMAS * fix_velocity_sigma_mps(fix, 0.0)
+    return fix.sog_mps is not None and fix.sog_mps >= max(DRIVING_SPEED_MPS, noise)
 
 
 def check_seed(
