@@ -161,7 +161,7 @@ def _first_pass_at_once(scenario: Scenario) -> Scenario:
         ("power-on", _power_on, None, "accel x +"),
         ("moved", None, _moved, "the vehicle stands 11."),
         ("no rest", None, _no_rest, "no rest stored with it"),
-        ("drove off", _first_pass_at_once, None, "the vehicle drove off before it had stood 3 s"),
+        ("drove off", _first_pass_at_once, None, "the vehicle drove off before it had stood 4 s"),
     ],
 )
 def test_a_seed_that_cannot_be_checked_at_rest_on_the_same_spot_is_not_used(

@@ -30,8 +30,9 @@ core asks once, with the IMU's temperature and the time of the first IMU_AUX (1 
 the learned state to seed the engine with; without IMU_AUX within :data:`WARM_START_WAIT_S`
 of the first sample the engine stays cold (the state is kept per temperature, and a guess
 of the temperature would be a guess of the biases). The seed is used only once the vehicle
-has stood :data:`gateway.fusion.rest_check.MIN_REST_S` on the spot where it last stopped and
-the IMU measures there what it measured then (:func:`gateway.fusion.rest_check.check_seed`):
+has stood still a few seconds (:mod:`gateway.fusion.rest_check`: 1 s to settle, 3 s of means)
+on the spot where it last stopped and the IMU measures there what it measured then
+(:func:`gateway.fusion.rest_check.check_seed`):
 a new power-on may have moved the biases. Driven off before, the start is cold. The rest
 itself is followed (:attr:`FusionCore.rest`) whenever the shell keeps a state.
 """
@@ -57,6 +58,7 @@ from gateway.fusion.engines import epoch_clock, make_engine
 from gateway.fusion.output_guard import OutputGuard
 from gateway.fusion.rest_check import (
     MIN_REST_S,
+    SETTLE_S,
     RestMean,
     WarmSeed,
     check_seed,
@@ -262,7 +264,7 @@ class FusionCore:
             log.warning(
                 "learned state not used at t=%.3f: the vehicle drove off before it had stood "
                 "%.0f s on the spot where it last stopped, which would have checked it; cold "
-                "start", fix.t, MIN_REST_S,
+                "start", fix.t, SETTLE_S + MIN_REST_S,
             )  # fmt: skip
 
     def on_imu(self, sample: ImuSample) -> Iterator[can.Message]:
