@@ -37,7 +37,7 @@ from gateway.fusion.engines import make_engine
 from gateway.fusion.fusion_core import FusionCore
 from gateway.offline.log_inputs import LogInputs
 from gateway.offline.log_replay import replay
-from gateway.service.live_loop import GatewayService
+from gateway.service.live_loop import STOP_SAVE_S, GatewayService
 from gateway.service.timebase import TimeBase
 from gateway.state.keeper import StateKeeper
 from gateway.state.store import STATE_FILE, read_state
@@ -264,6 +264,45 @@ def test_the_service_saves_while_running_and_at_a_clean_stop(runs: Runs, tmp_pat
     rest = stored.rest
     assert rest is not None and inputs[-1].t - 1.0 < rest.t_s <= inputs[-1].t
     assert rest.duration_s >= 3.0
+
+
+def test_the_service_saves_a_stop_once_it_is_long_enough(runs: Runs, tmp_path: Path) -> None:
+    """A gateway whose power is cut at key-off never stops cleanly: the stop the next start
+    checks against is saved once it has lasted STOP_SAVE_S, not at the next save_interval_s
+    (an hour here), and once per stop. Fed the second run's first 20 s (parked)."""
+    state_dir = tmp_path / "state"
+    state_dir.mkdir()
+    base = load_config(runs.second.config_file).with_engine(Engine.OBSERVER)
+    config = dataclasses.replace(
+        base,
+        imu=dataclasses.replace(base.imu, interface="virtual", channel=f"st{id(tmp_path)}"),
+        gnss=GnssSection(port=str(tmp_path / "no-receiver")),
+        state=StateSection(enabled=True, directory=str(state_dir), save_interval_s=3600.0),
+    )
+    inputs = list(LogInputs(runs.second.imu_log, runs.second.gnss_log, imu_config(config)))
+    parked = [item for item in inputs if item.t - inputs[0].t <= 20.0]
+
+    async def run() -> tuple[int, int]:
+        service = GatewayService(config, timebase=TimeBase(parked[-1].t, time.time(), 100.0))
+        for item in parked:
+            for _ in service.core.on_input(item):
+                pass
+        keeper = service.state
+        assert keeper is not None
+        running = asyncio.create_task(service.run())
+        deadline = time.monotonic() + 10.0
+        while keeper.saves == 0 and time.monotonic() < deadline:
+            await asyncio.sleep(0.02)
+        first = keeper.saves
+        await asyncio.sleep(0.5)  # 50 s of service time: some 50 more looks at the same stop
+        again = keeper.saves
+        service.request_stop()
+        assert await running == 0
+        return first, again
+
+    assert asyncio.run(run()) == (1, 1)  # the stop saved once, not again
+    rest = read_state(state_dir / STATE_FILE).rest
+    assert rest is not None and STOP_SAVE_S <= rest.duration_s < 20.0
 
 
 def test_without_the_imu_temperature_the_start_is_cold(

@@ -24,11 +24,12 @@ is fast and runs inline):
 - the health task: sd_notify STATUS every few seconds and WATCHDOG=1 while :meth:`healthy`;
   the IMU mounting estimate (:mod:`gateway.service.mounting_watch`, fed every input after
   the core) logged every ``[calibration] report_interval_s``;
-- the state task (``[state] enabled``): every ``save_interval_s`` the learned biases, if the
-  engine has learned better ones, and the mounting estimate once determined, written to the
-  state directory (:class:`~gateway.state.keeper.StateKeeper`); the write (an fsync, tens of
-  ms on an ECU's flash) runs in a worker thread so that it never holds up the core. The
-  learned state is read before anything is built
+- the state task (``[state] enabled``): every ``save_interval_s``, and once a stop has
+  lasted ``STOP_SAVE_S``, the learned biases, if the engine has learned better ones, the
+  last stop, and the mounting estimate once determined, written to the state directory
+  (:class:`~gateway.state.keeper.StateKeeper`); the write (an fsync, tens of ms on an ECU's
+  flash) runs in a worker thread so that it never holds up the core. The learned state is
+  read before anything is built
   (:func:`~gateway.state.keeper.effective_start`: with ``[calibration] apply`` the stored
   mounting may be the one in effect, for the whole run; the engine starts from the biases
   at the first IMU_AUX) and written once more at a clean stop (SIGTERM).
@@ -92,6 +93,12 @@ MAX_SAMPLE_AGE_S = 0.1
 STATUS_INTERVAL_S = 2.0  # sd_notify STATUS, wall seconds
 HEARTBEAT_MAX_S = 2.0  # the tick or the core stalled this long (wall): unhealthy
 CLOCK_MISMATCH_S = 5.0  # frame timestamps this far from the host clock are not host time
+#: A stop this long (its means, after the settling second) is saved at once, not at the next
+#: save_interval_s: a gateway whose power is cut at key-off, without a clean stop, still
+#: leaves the stop the next start checks its biases against. Shorter stops (reversing: 2 s)
+#: are not worth a write each.
+STOP_SAVE_S = 5.0
+STATE_TICK_S = 1.0  # how often the state task looks for such a stop, service seconds
 TURN_S = 0.001  # a task with work queued lets the loop run the others after this long
 
 Input = ImuSample | ImuAux  # what the inbox carries (fixes wait in a queue of their own)
@@ -390,9 +397,23 @@ class GatewayService:
 
     async def _run_state(self, keeper: StateKeeper) -> None:
         """Save what the engine has learned every ``save_interval_s`` (service time), if
-        better than what is stored; the blocking write in a worker thread."""
+        better than what is stored, and each stop once it is :data:`STOP_SAVE_S` long; the
+        blocking write in a worker thread."""
+        interval_s = self.config.state.save_interval_s
+        since_s = 0.0
+        saved_stop_s: float | None = None  # start of the last stop saved
         while True:
-            await asyncio.sleep(self.timebase.wall_s(self.config.state.save_interval_s))
+            tick_s = min(STATE_TICK_S, interval_s)
+            await asyncio.sleep(self.timebase.wall_s(tick_s))
+            since_s += tick_s
+            stop = self.core.rest.current() if self.core.rest is not None else None
+            stop_s = None if stop is None else stop.t_s - stop.duration_s
+            new_stop = stop is not None and stop.duration_s >= STOP_SAVE_S
+            if since_s < interval_s and not (new_stop and stop_s != saved_stop_s):
+                continue
+            since_s = 0.0
+            if new_stop:
+                saved_stop_s = stop_s
             try:
                 state = keeper.snapshot(self.core, mounting=self._mounting_learned())
             except Exception:  # never fatal: the gateway runs on without a saved state
