@@ -36,14 +36,14 @@ MIN_REST_S = 3.0
 #: noise (single point: 0.1 m/s a axis) ...
 STILL_SPEED_MPS = 0.1
 SPEED_SIGMAS = 4.0
-#: Driving off: GNSS speed above this (m/s) and above DRIVING_SIGMAS of its noise.
-DRIVING_SPEED_MPS = 0.5
-DRIVING_SIGMAS = 6.0
 #: ... and the body rate, low-passed over RATE_LP_S, below this (rad/s): not turning, not
 #: rocking. (Single samples at rest exceed it now and then: the ADIS16334's rate noise is
 #: ~0.6 deg/s a sample at 204.8 Hz.)
 QUIET_RATE_RPS = 2.0 * DEG_TO_RAD
 RATE_LP_S = 0.1
+#: Driving off: GNSS speed above this (m/s) and above DRIVING_SIGMAS of its noise.
+DRIVING_SPEED_MPS = 0.5
+DRIVING_SIGMAS = 6.0
 #: The first second of a stretch is left out of its means: GNSS speed falls below
 #: STILL_SPEED_MPS while the last of the braking goes on, and a vehicle rocks on its
 #: suspension after it stops.
