@@ -27,6 +27,7 @@ from gateway.cli.main import main
 from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import (
     Engine,
+    GatewayConfig,
     GnssSection,
     StateSection,
     load_config,
@@ -222,19 +223,33 @@ def test_an_engine_restarted_after_an_imu_gap_keeps_what_it_learned(runs: Runs) 
     assert max(after.sigma_a_mps2[:2]) < 0.02  # not the turn-on 0.1
 
 
+def _service_config(
+    run: SimRun, engine: Engine, tmp_path: Path, state_dir: Path, save_interval_s: float
+) -> GatewayConfig:
+    """The run's config for a service on a virtual bus with no receiver, keeping its state."""
+    base = load_config(run.config_file).with_engine(engine)
+    return dataclasses.replace(
+        base,
+        imu=dataclasses.replace(base.imu, interface="virtual", channel=f"ws{id(tmp_path)}"),
+        gnss=GnssSection(port=str(tmp_path / "no-receiver")),
+        state=StateSection(enabled=True, directory=str(state_dir), save_interval_s=save_interval_s),
+    )
+
+
+async def _first_save(keeper: StateKeeper) -> None:
+    """Until the service's state task has written once (10 s wall at most)."""
+    deadline = time.monotonic() + 10.0
+    while keeper.saves == 0 and time.monotonic() < deadline:
+        await asyncio.sleep(0.02)
+
+
 def test_the_service_saves_while_running_and_at_a_clean_stop(runs: Runs, tmp_path: Path) -> None:
     """On a scaled clock (save_interval_s of 10 s is 0.1 s), a service started from the first
     run's store (warm: checked at rest where the first run stopped) and fed the second run
     saves from its state task, then once more at stop, with the second run's last stop."""
     state_dir = tmp_path / "state"
     shutil.copytree(runs.state_dir, state_dir)
-    base = load_config(runs.second.config_file).with_engine(Engine.EKF)
-    config = dataclasses.replace(
-        base,
-        imu=dataclasses.replace(base.imu, interface="virtual", channel=f"ws{id(tmp_path)}"),
-        gnss=GnssSection(port=str(tmp_path / "no-receiver")),
-        state=StateSection(enabled=True, directory=str(state_dir), save_interval_s=10.0),
-    )
+    config = _service_config(runs.second, Engine.EKF, tmp_path, state_dir, 10.0)
     inputs = list(LogInputs(runs.second.imu_log, runs.second.gnss_log, imu_config(config)))
 
     async def run() -> tuple[int, int]:
@@ -245,9 +260,7 @@ def test_the_service_saves_while_running_and_at_a_clean_stop(runs: Runs, tmp_pat
         keeper = service.state
         assert keeper is not None and service.core.warm_started
         running = asyncio.create_task(service.run())
-        deadline = time.monotonic() + 10.0
-        while keeper.saves == 0 and time.monotonic() < deadline:
-            await asyncio.sleep(0.02)
+        await _first_save(keeper)
         periodic = keeper.saves
         service.request_stop()
         assert await running == 0
@@ -272,13 +285,7 @@ def test_the_service_saves_a_stop_once_it_is_long_enough(runs: Runs, tmp_path: P
     (an hour here), and once per stop. Fed the second run's first 20 s (parked)."""
     state_dir = tmp_path / "state"
     state_dir.mkdir()
-    base = load_config(runs.second.config_file).with_engine(Engine.OBSERVER)
-    config = dataclasses.replace(
-        base,
-        imu=dataclasses.replace(base.imu, interface="virtual", channel=f"st{id(tmp_path)}"),
-        gnss=GnssSection(port=str(tmp_path / "no-receiver")),
-        state=StateSection(enabled=True, directory=str(state_dir), save_interval_s=3600.0),
-    )
+    config = _service_config(runs.second, Engine.OBSERVER, tmp_path, state_dir, 3600.0)
     inputs = list(LogInputs(runs.second.imu_log, runs.second.gnss_log, imu_config(config)))
     parked = [item for item in inputs if item.t - inputs[0].t <= 20.0]
 
@@ -290,9 +297,7 @@ def test_the_service_saves_a_stop_once_it_is_long_enough(runs: Runs, tmp_path: P
         keeper = service.state
         assert keeper is not None
         running = asyncio.create_task(service.run())
-        deadline = time.monotonic() + 10.0
-        while keeper.saves == 0 and time.monotonic() < deadline:
-            await asyncio.sleep(0.02)
+        await _first_save(keeper)
         first = keeper.saves
         await asyncio.sleep(0.5)  # 50 s of service time: some 50 more looks at the same stop
         again = keeper.saves
