@@ -17,6 +17,7 @@ import numpy.typing as npt
 from nmea2000 import NMEA2000Decoder
 
 from drivers.logs.candump import read_candump
+from gateway.demo.accuracy import attitude_error_rad, truth_at
 from sim_bus.truth import Truth
 
 
@@ -45,16 +46,15 @@ def decode_log(path: str | Path) -> list[Decoded]:
 def attitude_errors_deg(
     messages: list[Decoded], truth: Truth, after_s: float
 ) -> npt.NDArray[np.float64]:
-    """(n, 3) roll, pitch, yaw errors in degrees of 127257 frames later than ``after_s``."""
+    """(n, 3) roll, pitch, yaw errors in degrees of 127257 frames later than ``after_s``
+    (the truth interpolated with its yaw unwrapped: a frame between two truth samples either
+    side of +-180 deg is compared with a heading near 180 deg, not with their mean near 0)."""
     rows = [m for m in messages if m.id == "attitude" and m.t - truth.t[0] > after_s]
-    t = np.array([m.t for m in rows])
     est = np.array(
         [[m.fields["roll"], m.fields["pitch"], m.fields["yaw"]] for m in rows], dtype=float
     )
-    true = np.column_stack([np.interp(t, truth.t, truth.rpy_rad[:, i]) for i in range(3)])
-    err = est - true
-    err[:, 2] = (err[:, 2] + np.pi) % (2 * np.pi) - np.pi
-    return np.degrees(err)
+    true = truth_at(truth, np.array([m.t for m in rows])).rpy_rad
+    return np.degrees(attitude_error_rad(est, true))
 
 
 def position_errors_m(
@@ -64,11 +64,10 @@ def position_errors_m(
     from gateway.estimation.geodesy import lla_to_ned
 
     rows = [m for m in messages if m.id == "positionRapidUpdate" and m.t - truth.t[0] > after_s]
-    t = np.array([m.t for m in rows])
     lla = np.array([[m.fields["latitude"], m.fields["longitude"], 0.0] for m in rows], dtype=float)
     ned = lla_to_ned(lla, truth.origin_lla)
-    true = np.column_stack([np.interp(t, truth.t, truth.pos_ned_m[:, i]) for i in range(2)])
-    return np.hypot(*(ned[:, :2] - true).T)
+    true = truth_at(truth, np.array([m.t for m in rows])).pos_ned_m
+    return np.hypot(*(ned[:, :2] - true[:, :2]).T)
 
 
 @dataclass(frozen=True)

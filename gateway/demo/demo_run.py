@@ -27,7 +27,7 @@ import numpy.typing as npt
 
 from drivers.errors import InputError
 from drivers.logs.candump import CandumpWriter
-from drivers.units import RAD_TO_DEG, wrap_pi
+from drivers.units import RAD_TO_DEG
 from gateway.config.gateway_config import (
     GatewayConfig,
     GnssSection,
@@ -36,6 +36,7 @@ from gateway.config.gateway_config import (
     StateSection,
     VehicleSection,
 )
+from gateway.demo.accuracy import TruthAt, attitude_error_rad, truth_at
 from gateway.demo.playback import SyncedPlayback
 from gateway.estimation.geodesy import lla_to_ned
 from gateway.estimation.solution import Mode, Solution
@@ -101,23 +102,6 @@ class Trace:
         self.bias_a_mps2.append(np.asarray(sol.bias_a_mps2, dtype=float))
         ned = lla_to_ned(np.array([[sol.lat_deg, sol.lon_deg, 0.0]]), origin_lla)[0]
         self.ne_m.append((float(ned[0]), float(ned[1])))
-
-
-def truth_at(truth: Truth, t: npt.ArrayLike) -> dict[str, Array]:
-    """Truth columns interpolated at times ``t``: rpy (yaw unwrapped), biases, north/east."""
-    t = np.atleast_1d(np.asarray(t, dtype=float))
-
-    def interp(columns: Array) -> Array:
-        return np.column_stack([np.interp(t, truth.t, c) for c in columns.T])
-
-    rpy = truth.rpy_rad.copy()
-    rpy[:, 2] = np.unwrap(rpy[:, 2])
-    return {
-        "rpy_rad": interp(rpy),
-        "bias_g_rps": interp(truth.bias_g_rps),
-        "bias_a_mps2": interp(truth.bias_a_mps2),
-        "ne_m": interp(truth.pos_ned_m[:, :2]),
-    }
 
 
 @dataclass(frozen=True)
@@ -209,8 +193,8 @@ def view_text(service: GatewayService, truth: Truth, t0: float) -> str:
     )
     if sol.roll_rad is None or sol.pitch_rad is None:
         return head + "\n  attitude: not yet\n  biases:   not yet"
-    tr = truth_at(truth, sol.t)
-    rpy_true = tr["rpy_rad"][0] * RAD_TO_DEG
+    tr = truth_at(truth, np.array([sol.t]))
+    rpy_true = tr.rpy_rad[0] * RAD_TO_DEG
     yaw = f"{sol.yaw_rad * RAD_TO_DEG:6.1f}" if sol.yaw_rad is not None else "   n/a"
     att = (
         f"  attitude deg   roll {sol.roll_rad * RAD_TO_DEG:+6.2f} ({rpy_true[0]:+6.2f})  pitch "
@@ -219,8 +203,8 @@ def view_text(service: GatewayService, truth: Truth, t0: float) -> str:
     )
     if sol.bias_g_rps is None or sol.bias_a_mps2 is None:
         return head + "\n" + att + "\n  biases:   not yet"
-    g, g_true = np.asarray(sol.bias_g_rps) * RAD_TO_DEG, tr["bias_g_rps"][0] * RAD_TO_DEG
-    a, a_true = np.asarray(sol.bias_a_mps2), tr["bias_a_mps2"][0]
+    g, g_true = np.asarray(sol.bias_g_rps) * RAD_TO_DEG, tr.bias_g_rps[0] * RAD_TO_DEG
+    a, a_true = np.asarray(sol.bias_a_mps2), tr.bias_a_mps2[0]
     bias = "  bias  gyro deg/s " + " ".join(
         f"{axis} {g[i]:+.4f} ({g_true[i]:+.4f})" for i, axis in enumerate("xyz")
     )
@@ -305,11 +289,9 @@ async def run_demo(options: DemoOptions, show: Callable[[str], None]) -> DemoSum
     )
 
 
-def _errors(trace: Trace, truth: Truth) -> tuple[Array, dict[str, Array]]:
-    tr = truth_at(truth, trace.t)
-    err = np.asarray(trace.rpy_rad) - tr["rpy_rad"]
-    err[:, 2] = wrap_pi(err[:, 2])
-    return err * RAD_TO_DEG, tr
+def _errors(trace: Trace, truth: Truth) -> tuple[Array, TruthAt]:
+    tr = truth_at(truth, np.asarray(trace.t))
+    return attitude_error_rad(trace.rpy_rad, tr.rpy_rad) * RAD_TO_DEG, tr
 
 
 def summarise(
@@ -333,10 +315,10 @@ def summarise(
         if after.any():
             r = np.sqrt(np.mean(err[after] ** 2, axis=0))
             rms = (float(r[0]), float(r[1]), float(r[2]))
-            d_ne = np.asarray(trace.ne_m)[after] - tr["ne_m"][after]
+            d_ne = np.asarray(trace.ne_m)[after] - tr.pos_ned_m[after, :2]
             ref_rms = float(np.sqrt(np.mean(np.sum(d_ne**2, axis=1))))
-        g = (trace.bias_g_rps[-1] - tr["bias_g_rps"][-1]) * RAD_TO_DEG
-        a = trace.bias_a_mps2[-1] - tr["bias_a_mps2"][-1]
+        g = (trace.bias_g_rps[-1] - tr.bias_g_rps[-1]) * RAD_TO_DEG
+        a = trace.bias_a_mps2[-1] - tr.bias_a_mps2[-1]
         g_err, a_err = (float(g[0]), float(g[1]), float(g[2])), (float(a[0]), float(a[1]))
     core, imu = service.core.stats, service.imu_decoder.counters
     return DemoSummary(

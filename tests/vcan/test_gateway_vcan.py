@@ -245,7 +245,7 @@ def test_gateway_output_on_vcan_decodes_to_the_truth(session: Session, tmp_path:
     assert not late, f"{late}\ninput stalls {stalls[:10]}\n{_said(session)}"
     err = attitude_errors_deg(messages, session.truth, after_s=ALIGNED_S)
     rms = np.sqrt(np.mean(err**2, axis=0))
-    assert rms[0] < 1.0 and rms[1] < 1.0 and rms[2] < 3.0, rms
+    assert rms[0] < 1.0 and rms[1] < 1.0 and rms[2] < 1.0, rms
     assert np.median(position_errors_m(messages, session.truth, after_s=ALIGNED_S)) < 0.5
 
 
