@@ -190,17 +190,19 @@ def test_tilt_without_a_stated_accuracy_goes_out_as_not_available(
     sigma_deg: float | None,
 ) -> None:
     """Roll/pitch 1-sigma unknown or beyond what STATUS can state: roll and pitch withheld
-    quietly (normal after levelling on a moving window), yaw, position and mode kept."""
+    quietly (normal after levelling on a moving window), and the reference point with them
+    (antenna - C l: as unknown as the tilt); yaw, speed and mode kept."""
     guard = OutputGuard()
     engine = ScriptedEngine()
     engine.t = T0 + 1.0
     sigma = None if sigma_deg is None else math.radians(sigma_deg)
     sol = guard.check(Solution(**{**_fields(engine.solution()), "sigma_tilt_rad": sigma}))
     assert sol.roll_rad is None and sol.pitch_rad is None
-    assert sol.yaw_rad == math.pi / 2 and sol.lat_deg == LAT0
+    assert sol.lat_deg is None and sol.lon_deg is None and sol.alt_m is None
+    assert sol.yaw_rad == math.pi / 2 and sol.vel_ned_mps is not None
     assert sol.mode is (Mode.NAVIGATING if sigma_deg is None or sigma_deg > 0 else Mode.DEGRADED)
     assert guard.counts[Withheld.ATTITUDE] == 0
     stated = guard.check(
         Solution(**{**_fields(engine.solution()), "sigma_tilt_rad": math.radians(2.5)})
     )
-    assert stated.roll_rad == 0.02 and stated.pitch_rad == -0.01
+    assert stated.roll_rad == 0.02 and stated.pitch_rad == -0.01 and stated.lat_deg == LAT0

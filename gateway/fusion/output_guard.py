@@ -22,8 +22,10 @@ limited rate (solution time, so replay logs the same). Checks:
 
 Roll and pitch go out only with a stated accuracy: while their 1-sigma is unknown or beyond
 ``max_tilt_sigma_deg`` (the most NAVGW_STATUS byte 7 can state, SPEC 4), they are "not
-available". That is normal operation (an engine levelled on a moving window), not an
-implausible output: not counted, not logged, the mode kept.
+available", and so is the position: the reference point is the antenna minus C times its
+lever arm, as unknown as the tilt (3 m of mast and 3 deg: 16 cm). That is normal operation
+(an engine levelled on a moving window), not an implausible output: not counted, not logged,
+the mode kept.
 
 It also makes the fix fields say what the position sent is (SPEC 4): while coasting the
 position is dead reckoning (GGA quality 6; satellites, HDOP and age not available), and
@@ -123,10 +125,12 @@ class OutputGuard:
                 age_s=None,
             )
         lim = self.limits
-        if sol.roll_rad is not None or sol.pitch_rad is not None:
+        if sol.roll_rad is not None or sol.pitch_rad is not None or sol.lat_deg is not None:
             sigma = sol.sigma_tilt_rad
             if sigma is None or not sigma <= lim.max_tilt_sigma_deg * DEG_TO_RAD:
-                sol = replace(sol, roll_rad=None, pitch_rad=None)
+                sol = replace(
+                    sol, roll_rad=None, pitch_rad=None, lat_deg=None, lon_deg=None, alt_m=None
+                )
         changes: dict[str, object] = {}
         reasons: list[str] = []
         fault = False

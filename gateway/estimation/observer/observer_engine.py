@@ -446,7 +446,16 @@ class ObserverEngine:
         self._imu.upset = False
         cog_ref = math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
         yaw_rate = c_bn[6] * w_still[0] + c_bn[7] * w_still[1] + c_bn[8] * w_still[2]
+        aligned = self._heading_aligned
         self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn[8])
+        if not aligned and self._heading_aligned:
+            # The heading was found: the reference point (antenna - C l_ant) and its velocity
+            # stood in an arbitrary azimuth until now (0.84 m off with a 0.5 m lever arm
+            # turned by 115 deg); they start again, from this fix, in the heading found.
+            c_e = self._attitude_at(row, obs.c_bp9)
+            v_ref = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, (0.0, 0.0, 0.0))
+            v_imu = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, self._l_imu_f)
+            self._nav_valid = False
         self._lever_v_ned_mps = (v_imu[0] - v_ref[0], v_imu[1] - v_ref[1], v_imu[2] - v_ref[2])
         self._correct_position(fix, t_e, row, c_e, (v_ref[0], v_ref[1]))
 
@@ -906,7 +915,8 @@ class ObserverEngine:
         lat = lon = alt = None
         vel = None
         send, within = self._dead_reckoning_output(coasting_s)
-        if self._nav_valid and self._frame is not None and send:
+        # the reference point is antenna - C l_ant: not known before the heading is
+        if self._nav_valid and self._heading_aligned and self._frame is not None and send:
             lat, lon, alt = self._frame.to_lla(*self._p_ned_m)
             vel = (self._v_ned_mps[0], self._v_ned_mps[1], self._v_ned_mps[2])
         k = self.cfg.converged_time_constants
