@@ -230,12 +230,9 @@ class Strapdown:
         wx, wy, wz = w_ib_b[0] - bg[0], w_ib_b[1] - bg[1], w_ib_b[2] - bg[2]
         fx, fy, fz = f_ib_b[0] - ba[0], f_ib_b[1] - ba[1], f_ib_b[2] - ba[2]
         self.w_b_rps = (wx, wy, wz)
-        if self._n:
-            a = dt / (RATE_LP_TAU_S + dt)
-            lx, ly, lz = self.w_b_lp_rps
-            self.w_b_lp_rps = (lx + a * (wx - lx), ly + a * (wy - ly), lz + a * (wz - lz))
-        else:  # from the first rate, not from rest: levelled in a turn, it read 1.7 of 11 deg/s
-            self.w_b_lp_rps = (wx, wy, wz)
+        a = dt / (RATE_LP_TAU_S + dt)
+        lx, ly, lz = self.w_b_lp_rps
+        self.w_b_lp_rps = (lx + a * (wx - lx), ly + a * (wy - ly), lz + a * (wz - lz))
         ax, ay, az = wx * dt, wy * dt, wz * dt
         dvx = (fx + 0.5 * (ay * fz - az * fy)) * dt
         dvy = (fy + 0.5 * (az * fx - ax * fz)) * dt

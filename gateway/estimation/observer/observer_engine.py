@@ -945,9 +945,10 @@ class ObserverEngine:
         """Rate of turn about the NED vertical, (C w_b)[2], w_b averaged over the last
         ``OUTPUT_RATE_WINDOW_S`` (a single ADIS16334 sample is 0.5 deg/s noisy). Output only
         (no state depends on it), so plain floats, not numpy."""
-        if not self._hist:
-            return None
-        last = self._hist[-1]
+        hist = self._hist
+        if not hist or hist[-1][_T] - hist[0][_T] < OUTPUT_RATE_WINDOW_S:
+            return None  # not yet a window: one sample's noise (1.6 deg/s seen) is no rate
+        last = hist[-1]
         w = self._mean_rate(last[_T] - OUTPUT_RATE_WINDOW_S, last)
         return c9[6] * w[0] + c9[7] * w[1] + c9[8] * w[2]
 
