@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import logging
 import math
+from collections import deque
 from dataclasses import dataclass
 
 import numpy as np
@@ -102,6 +103,14 @@ log = logging.getLogger(__name__)
 
 #: Tilt alignment accepts a non-quiet window after this long (vehicle never still).
 ALIGN_TIMEOUT_S = 10.0
+#: A rest window starts once the vehicle has been quiet and still this long, s: the braking
+#: to a stop (GNSS speed lags it) and the rocking after it are not tilt (a window from the
+#: stop on levelled 0.45 deg off, stated 0.03).
+ALIGN_SETTLE_S = 1.0
+#: A window levels with its samples up to this long ago, s: GNSS says "moving" one epoch
+#: and its latency after the vehicle pulls away, the IMU feels it at once.
+ALIGN_LAG_S = 0.5
+ALIGN_MARK_S = 0.05  # the window's running sums kept this often, s, for that
 #: Earth rate, rad/s: part of the gyro mean at rest (mechanisation drops it, see
 #: gateway.estimation.ekf.error_state).
 EARTH_RATE_RPS = 7.292115e-5
@@ -162,6 +171,8 @@ class EkfEngine:
         self._win_t0_s: float | None = None
         self._win_sum = np.zeros(6)
         self._win_n = 0
+        self._win_marks: deque[tuple[float, Array, int]] = deque()  # (t, sums, n) to level with
+        self._still_since_s: float | None = None  # quiet and still since
         self._win_at_rest = True  # every sample of the window quiet and GNSS speed ~0
         self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
         self._rest_bias_s = 0.0  # rest duration behind the gyro bias estimate, 0 if none
@@ -230,7 +241,10 @@ class EkfEngine:
         ``align_tilt_time_s`` until the heading is known, so alignment uses the last rest
         before the vehicle drives off. At rest the mean rate is the gyro bias plus Earth rate
         (at most 0.004 deg/s, left in its 1-sigma). If never quiet for ``ALIGN_TIMEOUT_S``,
-        a moving window levels the INS (no gyro bias) and the filter finishes the job.
+        a moving window levels the INS (no gyro bias) and the filter finishes the job. A rest
+        window starts :data:`ALIGN_SETTLE_S` after GNSS says still and levels with its samples
+        up to :data:`ALIGN_LAG_S` ago: the stop before it and the pull-away after it, which
+        GNSS reports late, are not in the mean.
         """
         if self._align_first_s is None:
             self._align_first_s = t
@@ -240,23 +254,41 @@ class EkfEngine:
             math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
             < self.cfg.align_quiet_rate_dps * DEG_TO_RAD
         )
+        if not still:
+            self._still_since_s = None
+        elif self._still_since_s is None:
+            self._still_since_s = t
+        still_s = 0.0 if self._still_since_s is None else t - self._still_since_s
         if not (quiet and still):
             if self._ins is not None or t - self._align_first_s < ALIGN_TIMEOUT_S:
                 self._win_t0_s = None
                 return
             self._win_at_rest = False
+        elif self._win_t0_s is None and still_s < ALIGN_SETTLE_S:
+            return
         if self._win_t0_s is None:
             self._win_t0_s = t
             self._win_sum[:] = 0.0
             self._win_n = 0
+            self._win_marks.clear()
             self._win_at_rest = True
             self._win_motion.restart()
         self._win_sum += (*f, *w)
         self._win_n += 1
-        span = t - self._win_t0_s
-        if span < self.cfg.align_tilt_time_s or t - self._t_levelled_s < self.cfg.align_tilt_time_s:
+        marks = self._win_marks
+        if not marks or t - marks[-1][0] >= ALIGN_MARK_S:
+            marks.append((t, self._win_sum.copy(), self._win_n))
+        while len(marks) > 1 and marks[1][0] <= t - ALIGN_LAG_S:
+            marks.popleft()  # the first left is the newest at least ALIGN_LAG_S old
+        t_end, win_sum, win_n = marks[0]
+        span = t_end - self._win_t0_s
+        if (
+            t_end > t - ALIGN_LAG_S
+            or span < self.cfg.align_tilt_time_s
+            or t - self._t_levelled_s < self.cfg.align_tilt_time_s
+        ):
             return
-        mean = self._win_sum / self._win_n
+        mean = win_sum / win_n
         roll, pitch = roll_pitch_from_specific_force(mean[:3])
         yaw = 0.0 if self._ins is None else rpy_from_dcm(self._ins.c_bn)[2]
         created = self._ins is None
