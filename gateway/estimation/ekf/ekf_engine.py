@@ -172,7 +172,7 @@ class EkfEngine:
         self._win_sum = np.zeros(6)
         self._win_n = 0
         self._win_marks: deque[tuple[float, Array, int]] = deque()  # (t, sums, n) to level with
-        self._still_since_s: float | None = None  # quiet and still since
+        self._still_since_s: float | None = None  # when the fixes last began to say still
         self._win_at_rest = True  # every sample of the window quiet and GNSS speed ~0
         self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
         self._rest_bias_s = 0.0  # rest duration behind the gyro bias estimate, 0 if none
