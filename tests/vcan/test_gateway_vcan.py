@@ -228,11 +228,9 @@ def test_gateway_output_on_vcan_decodes_to_the_truth(session: Session, tmp_path:
         assert not bad, f"{len(bad)} implausible frames:\n" + "\n".join(bad[:20])
     if _overloaded(session):
         # The emulated guest, on a loaded host, could not keep up: the gateway shed what it got
-        # too late, said DEGRADED (on the bus, and in its log: sd_notify STATUS lines are few
-        # when the guest crawls), and sent nothing wrong (checked above); rate and accuracy
-        # are for a gateway that keeps up.
-        said = [*session.notify, *session.stderr.splitlines()]
-        assert any("degraded" in line for line in said), _said(session)
+        # too late, said DEGRADED, and sent nothing wrong (checked above); rate and accuracy
+        # are for a gateway that keeps up. One that shed a few samples and bridged no gap
+        # (not DEGRADED) is held to both below.
         return
     messages = parts[0]
     t0 = session.truth.t[0]
@@ -250,8 +248,13 @@ def test_gateway_output_on_vcan_decodes_to_the_truth(session: Session, tmp_path:
 
 
 def _overloaded(session: Session) -> bool:
-    """The gateway said it shed IMU samples it got too late (the guest could not keep up)."""
-    return "stale IMU samples dropped" in session.stderr
+    """The guest could not keep up, and the gateway said so: it shed IMU samples it got too
+    late, enough to leave a gap its engine bridged, and said DEGRADED (in sd_notify STATUS or
+    in its log: STATUS lines are few when the guest crawls). A few samples shed one by one
+    leave no gap longer than MAX_IMU_STEP_S: then the gateway kept up and is not DEGRADED
+    (a CI run shed 2)."""
+    said = [*session.notify, *session.stderr.splitlines()]
+    return "stale IMU samples dropped" in session.stderr and any("degraded" in s for s in said)
 
 
 def _said(session: Session) -> str:
