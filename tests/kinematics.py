@@ -44,7 +44,10 @@ class Segment:
 
 @dataclass(frozen=True)
 class Motion:
-    """Segments driven from speed ``v0_mps`` and heading ``yaw0_rad`` at constant roll/pitch."""
+    """Segments driven from speed ``v0_mps`` and heading ``yaw0_rad`` at constant roll/pitch.
+
+    Speeds and accelerations are horizontal; the vehicle moves along its body x axis, as a
+    wheeled one does, so with pitch it climbs (or descends) tan(pitch) per metre."""
 
     segments: Sequence[Segment]
     v0_mps: float = 0.0
@@ -94,9 +97,11 @@ def state_at(motion: Motion, t: npt.ArrayLike) -> State:
     v0 = np.zeros(len(seg))
     psi0 = np.zeros(len(seg))
     p0 = np.zeros((len(seg), 2))
-    v, psi, p = motion.v0_mps, motion.yaw0_rad, np.zeros(2)
+    d0 = np.zeros(len(seg))  # distance driven (horizontal, signed) at each segment's start
+    v, psi, p, d = motion.v0_mps, motion.yaw0_rad, np.zeros(2), 0.0
     for k, s in enumerate(seg):
-        v0[k], psi0[k], p0[k] = v, psi, p
+        v0[k], psi0[k], p0[k], d0[k] = v, psi, p, d
+        d += v * s.duration_s + 0.5 * s.accel_mps2 * s.duration_s**2
         dn, de = _int_v_cos_sin(
             np.array(v),
             np.array(s.accel_mps2),
@@ -112,14 +117,17 @@ def state_at(motion: Motion, t: npt.ArrayLike) -> State:
     dn, de = _int_v_cos_sin(v0[i], acc[i], psi0[i], rate[i], tau)
     vel = v0[i] + acc[i] * tau
     yaw = psi0[i] + rate[i] * tau
-    n = len(tt)
     cy, sy = np.cos(yaw), np.sin(yaw)
-    p_ned = np.stack((p0[i, 0] + dn, p0[i, 1] + de, np.zeros(n)), axis=1)
-    v_ned = np.stack((vel * cy, vel * sy, np.zeros(n)), axis=1)
-    a_ned = np.stack(
-        (acc[i] * cy - vel * rate[i] * sy, acc[i] * sy + vel * rate[i] * cy, np.zeros(n)), axis=1
-    )
     r, th = motion.roll_rad, motion.pitch_rad
+    down = -math.tan(th)  # down per metre driven
+    dist = d0[i] + v0[i] * tau + 0.5 * acc[i] * tau**2
+    n = len(tt)
+    p_ned = np.stack((p0[i, 0] + dn, p0[i, 1] + de, down * dist), axis=1)
+    v_ned = np.stack((vel * cy, vel * sy, down * vel), axis=1)
+    a_ned = np.stack(
+        (acc[i] * cy - vel * rate[i] * sy, acc[i] * sy + vel * rate[i] * cy, down * acc[i]),
+        axis=1,
+    )
     sr, cr, sp, cp = math.sin(r), math.cos(r), math.sin(th), math.cos(th)
     c_bn = np.empty((n, 3, 3))
     c_bn[:, 0] = np.stack((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr), axis=1)
