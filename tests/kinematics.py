@@ -47,13 +47,16 @@ class Motion:
     """Segments driven from speed ``v0_mps`` and heading ``yaw0_rad`` at constant roll/pitch.
 
     Speeds and accelerations are horizontal; the vehicle moves along its body x axis, as a
-    wheeled one does, so with pitch it climbs (or descends) tan(pitch) per metre."""
+    wheeled one does, so with pitch it climbs (or descends) tan(pitch) per metre. Roll may
+    rock about the reference point: roll + rock sin(2 pi rock_hz t)."""
 
     segments: Sequence[Segment]
     v0_mps: float = 0.0
     yaw0_rad: float = 0.0
     roll_rad: float = 0.0
     pitch_rad: float = 0.0
+    rock_rad: float = 0.0  # amplitude of a roll rocking about the reference point (rough ground)
+    rock_hz: float = 0.0
 
     @property
     def duration_s(self) -> float:
@@ -128,13 +131,16 @@ def state_at(motion: Motion, t: npt.ArrayLike) -> State:
         (acc[i] * cy - vel * rate[i] * sy, acc[i] * sy + vel * rate[i] * cy, down * acc[i]),
         axis=1,
     )
-    sr, cr, sp, cp = math.sin(r), math.cos(r), math.sin(th), math.cos(th)
+    w_rock = 2.0 * math.pi * motion.rock_hz
+    roll = r + motion.rock_rad * np.sin(w_rock * tt)
+    sr, cr, sp, cp = np.sin(roll), np.cos(roll), math.sin(th), math.cos(th)
     c_bn = np.empty((n, 3, 3))
     c_bn[:, 0] = np.stack((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr), axis=1)
     c_bn[:, 1] = np.stack((sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr), axis=1)
-    c_bn[:, 2] = [-sp, cp * sr, cp * cr]
-    # constant roll/pitch: w_b = C_n^b-ish Euler kinematics with roll/pitch rates 0
-    w_b = rate[i][:, None] * np.array([-sp, sr * cp, cr * cp])
+    c_bn[:, 2] = np.stack((np.full(n, -sp), cp * sr, cp * cr), axis=1)
+    # Euler kinematics with pitch constant: w_b = (roll rate - yaw rate sin(pitch), ...)
+    w_b = rate[i][:, None] * np.stack((np.full(n, -sp), sr * cp, cr * cp), axis=1)
+    w_b[:, 0] += motion.rock_rad * w_rock * np.cos(w_rock * tt)
     return State(p_ned, v_ned, a_ned, yaw % (2 * math.pi), c_bn, w_b)
 
 

@@ -44,9 +44,12 @@ from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, Float3, GnssFix, Im
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 from gateway.estimation.attitude import (
     IDENTITY9,
+    Mat9,
     cross3,
     dcm_from_rpy,
+    dcm_mul,
     exp_so3,
+    exp_so3_2nd,
     roll_pitch_from_specific_force,
     rpy_from_dcm,
     rpy_from_mat9,
@@ -171,7 +174,12 @@ class EkfEngine:
         self._win_t0_s: float | None = None
         self._win_sum = np.zeros(6)
         self._win_n = 0
-        self._win_marks: deque[tuple[float, Array, int]] = deque()  # (t, sums, n) to level with
+        # a moving window's specific force in its first body frame, summed, and the rotation
+        # from the current body frame to that one (the gyro's)
+        self._win_f0 = [0.0, 0.0, 0.0]
+        self._win_rot9: Mat9 = IDENTITY9
+        # (t, sums, n, f0 sums) to level with
+        self._win_marks: deque[tuple[float, Array, int, list[float]]] = deque()
         self._still_since_s: float | None = None  # when the fixes last began to say still
         self._win_at_rest = True  # every sample of the window quiet and GNSS speed ~0
         self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
@@ -209,7 +217,7 @@ class EkfEngine:
             self._hist = InsHistory(max(2, math.ceil(self.cfg.history_s / dt)))
         self._t_s = t
         if self._p is None:
-            self._align_tilt(t, w, f)
+            self._align_tilt(t, w, f, dt)
         ins = self._ins
         if ins is None:
             return
@@ -233,7 +241,7 @@ class EkfEngine:
             self._fix_err_ned_m *= decay
             predict(self._p, transition_matrix(t_s, dv_f, c_dt, decay), self._q_c, t_s)
 
-    def _align_tilt(self, t: float, w: Float3, f: Float3) -> None:
+    def _align_tilt(self, t: float, w: Float3, f: Float3, dt: float) -> None:
         """Roll/pitch from the mean specific force of a quiet window; gyro bias if at rest.
 
         Quiet = |w| below ``align_quiet_rate_dps`` and, once GNSS speaks, speed below
@@ -244,7 +252,9 @@ class EkfEngine:
         a moving window levels the INS (no gyro bias) and the filter finishes the job. A rest
         window starts :data:`ALIGN_SETTLE_S` after GNSS says still and levels with its samples
         up to :data:`ALIGN_LAG_S` ago: the stop before it and the pull-away after it, which
-        GNSS reports late, are not in the mean.
+        GNSS reports late, are not in the mean. A moving window's attitude changes (a rough
+        slope rocks the vehicle a degree within a second): its specific force is carried into
+        its first body frame by the gyro, and its tilt from there to now.
         """
         if self._align_first_s is None:
             self._align_first_s = t
@@ -273,14 +283,24 @@ class EkfEngine:
             self._win_marks.clear()
             self._win_at_rest = True
             self._win_motion.restart()
+            self._win_f0 = [0.0, 0.0, 0.0]
+            self._win_rot9 = IDENTITY9
         self._win_sum += (*f, *w)
         self._win_n += 1
+        r, f0 = self._win_rot9, self._win_f0
+        f0[0] += r[0] * f[0] + r[1] * f[1] + r[2] * f[2]
+        f0[1] += r[3] * f[0] + r[4] * f[1] + r[5] * f[2]
+        f0[2] += r[6] * f[0] + r[7] * f[1] + r[8] * f[2]
+        b = self._seed.bias_g_rps if self._seed is not None else (0.0, 0.0, 0.0)
+        self._win_rot9 = dcm_mul(
+            r, exp_so3_2nd((w[0] - b[0]) * dt, (w[1] - b[1]) * dt, (w[2] - b[2]) * dt)
+        )
         marks = self._win_marks
         if not marks or t - marks[-1][0] >= ALIGN_MARK_S:
-            marks.append((t, self._win_sum.copy(), self._win_n))
+            marks.append((t, self._win_sum.copy(), self._win_n, f0.copy()))
         while len(marks) > 1 and marks[1][0] <= t - ALIGN_LAG_S:
             marks.popleft()  # the first left is the newest at least ALIGN_LAG_S old
-        t_end, win_sum, win_n = marks[0]
+        t_end, win_sum, win_n, f0_sum = marks[0]
         span = t_end - self._win_t0_s
         if (
             t_end > t - ALIGN_LAG_S
@@ -289,7 +309,12 @@ class EkfEngine:
         ):
             return
         mean = win_sum / win_n
-        roll, pitch = roll_pitch_from_specific_force(mean[:3])
+        if self._win_at_rest:  # (the same mean as in the first frame, without the gyro's drift)
+            roll, pitch = roll_pitch_from_specific_force(mean[:3])
+        else:
+            roll0, pitch0 = roll_pitch_from_specific_force([x / win_n for x in f0_sum])
+            # (the rotation before this sample's: the INS propagates with it next)
+            roll, pitch, _ = rpy_from_mat9(dcm_mul(to_mat9(dcm_from_rpy(roll0, pitch0, 0.0)), r))
         yaw = 0.0 if self._ins is None else rpy_from_dcm(self._ins.c_bn)[2]
         created = self._ins is None
         if self._ins is None:
@@ -301,6 +326,9 @@ class EkfEngine:
             self._rest_bias_s = span
             self._rest_mean_g_rps = self._ins.bias_g_rps
         self._sigma_level_rad = self._win_motion.tilt_sigma_rad()
+        if not self._win_at_rest:  # and the gyro bias over the window's rotation
+            drift = self._levelled_gyro_bias_sigma_rps() * (t - self._win_t0_s)
+            self._sigma_level_rad = math.hypot(self._sigma_level_rad, drift)
         self._t_levelled_s = t
         if self._seed is not None:
             self._apply_seed(self._seed)
