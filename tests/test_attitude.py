@@ -12,6 +12,7 @@ from gateway.estimation.attitude import (
     exp_so3,
     exp_so3_2nd,
     from_mat9,
+    heading_rate_from_mat9,
     orthonormalise,
     roll_pitch_from_specific_force,
     rpy_from_dcm,
@@ -69,3 +70,17 @@ def test_wrap_pi() -> None:
         [wrap_pi(3 * math.pi / 2), wrap_pi(-3 * math.pi / 2), wrap_pi(0.1)],
         [-math.pi / 2, math.pi / 2, 0.1],
     )
+
+
+def test_the_heading_rate_is_the_derivative_of_the_heading() -> None:
+    """Rolling 6 deg/s while turning 24 deg/s on a 9 deg slope: the heading changes at
+    (sin(roll) w_y + cos(roll) w_z) / cos(pitch), 1 deg/s more than the rate about the
+    vertical, (C w_b)[2], which the rate of turn sent before."""
+    c_bn = dcm_from_rpy(math.radians(-7.0), math.radians(9.0), 1.0)
+    w_b = np.array([math.radians(6.0), 0.05, math.radians(24.0)])
+    dt = 1e-5
+    yaw_next = rpy_from_dcm(c_bn @ exp_so3(w_b * dt))[2]
+    yaw_prev = rpy_from_dcm(c_bn @ exp_so3(-w_b * dt))[2]
+    rate = heading_rate_from_mat9(to_mat9(c_bn), w_b.tolist())
+    assert abs(rate - wrap_pi(yaw_next - yaw_prev) / (2 * dt)) < 1e-8
+    assert math.degrees(rate - (c_bn @ w_b)[2]) > 0.9  # about the vertical: 1 deg/s short

@@ -105,6 +105,15 @@ def rpy_from_mat9(c9: Mat9) -> tuple[float, float, float]:
     return roll, pitch, yaw
 
 
+def heading_rate_from_mat9(c9: Mat9, w_b: Sequence[float]) -> float:
+    """Rate of change of the heading (yaw of :func:`rpy_from_mat9`), rad/s, of a body turning
+    at ``w_b`` (rad/s, body): (sin(roll) w_y + cos(roll) w_z) / cos(pitch). Not the rate about
+    the vertical, (C w_b)[2]: that one misses roll rate x sin(pitch), 1 deg/s when roll
+    changes 6 deg/s on a 9 deg slope, and the heading sent beside it would not follow it."""
+    c20, c21, c22 = c9[6], c9[7], c9[8]
+    return (c21 * w_b[1] + c22 * w_b[2]) / (1.0 - c20 * c20)
+
+
 def roll_pitch_from_specific_force(f_b: npt.ArrayLike) -> tuple[float, float]:
     """Roll and pitch (rad) of a platform whose accelerometers read ``f_b`` (3,) at rest.
 

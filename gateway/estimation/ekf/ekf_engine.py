@@ -50,6 +50,7 @@ from gateway.estimation.attitude import (
     dcm_mul,
     exp_so3,
     exp_so3_2nd,
+    heading_rate_from_mat9,
     roll_pitch_from_specific_force,
     rpy_from_dcm,
     rpy_from_mat9,
@@ -867,7 +868,7 @@ class EkfEngine:
         # positional, in the field order (keywords cost a third of the solution's build)
         return Solution(
             t, mode, roll, pitch, yaw if p is not None else None,
-            c9[6] * w_b[0] + c9[7] * w_b[1] + c9[8] * w_b[2],  # yaw rate, output only
+            heading_rate_from_mat9(c9, w_b),  # output only
             lat, lon, alt, vel, (bg[0], bg[1], bg[2]), (ba[0], ba[1], ba[2]),
             self._sigma_tilt_rad(),
             quality, sats, hdop, age, geoid, station, talker,

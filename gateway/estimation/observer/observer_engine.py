@@ -30,6 +30,7 @@ from gateway.estimation.attitude import (
     dcm_from_rpy,
     dcm_mul,
     exp_so3_9,
+    heading_rate_from_mat9,
     roll_pitch_from_specific_force,
     rpy_from_mat9,
 )
@@ -942,7 +943,7 @@ class ObserverEngine:
         )  # fmt: skip
 
     def _yaw_rate_rps(self, c9: Mat9) -> float | None:
-        """Rate of turn about the NED vertical, (C w_b)[2], w_b averaged over the last
+        """Rate of turn (:func:`heading_rate_from_mat9`), w_b averaged over the last
         ``OUTPUT_RATE_WINDOW_S`` (a single ADIS16334 sample is 0.5 deg/s noisy). Output only
         (no state depends on it), so plain floats, not numpy."""
         hist = self._hist
@@ -950,7 +951,7 @@ class ObserverEngine:
             return None  # not yet a window: one sample's noise (1.6 deg/s seen) is no rate
         last = hist[-1]
         w = self._mean_rate(last[_T] - OUTPUT_RATE_WINDOW_S, last)
-        return c9[6] * w[0] + c9[7] * w[1] + c9[8] * w[2]
+        return heading_rate_from_mat9(c9, w)
 
     def _coasting_s(self) -> float:
         """Time since usable GNSS velocity stopped, 0 while it flows (receive-time clock)."""
