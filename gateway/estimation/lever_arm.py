@@ -9,6 +9,7 @@ as 9 row-major floats (:data:`~gateway.estimation.attitude.Mat9`) or a (3, 3) ar
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -72,3 +73,25 @@ def velocity_at(
     vn, ve, vd = lever_arm_velocity_ned(c_bn, w_b_rps, (dx - sx, dy - sy, dz - sz))
     un, ue, ud = v_src_ned_mps
     return (un + vn, ue + ve, ud + vd)
+
+
+def heading_from_antenna_course(
+    v_ant_ne_mps: Vec, c_bn: Mat9 | npt.ArrayLike, w_b_rps: Vec, lever_arm_ant_b: Vec
+) -> float:
+    """Heading, rad in [0, 2 pi), of a vehicle driving forward (along its body x axis, the
+    reference point without sideslip) whose antenna moves at ``v_ant_ne_mps`` (N, E) while
+    the body turns at ``w_b_rps``. Only the tilt of ``c_bn`` is used: its yaw may be anything
+    (the heading's first alignment).
+
+    The antenna's course is not the heading: a 3 m mast rocking 3 deg/s moves the antenna
+    0.16 m/s sideways, 6 deg of course at 1.5 m/s. With ``c_bn`` turned to yaw 0 the antenna
+    moves at k x_b + u, u = C (w x l), x_b without a lateral part: its course there is
+    asin(u_y / |v_ant|), and the heading the antenna's course less that.
+    """
+    c = _mat9(c_bn)
+    un, ue, _ = lever_arm_velocity_ned(c, w_b_rps, lever_arm_ant_b)
+    yaw = math.atan2(c[3], c[0])
+    u_lateral = math.cos(yaw) * ue - math.sin(yaw) * un
+    vn, ve = v_ant_ne_mps[0], v_ant_ne_mps[1]
+    ratio = max(-1.0, min(1.0, u_lateral / max(math.hypot(vn, ve), 1e-9)))
+    return (math.atan2(ve, vn) - math.asin(ratio)) % (2.0 * math.pi)

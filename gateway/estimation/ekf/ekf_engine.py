@@ -91,7 +91,11 @@ from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
-from gateway.estimation.lever_arm import lever_arm_position_ned, lever_arm_velocity_ned
+from gateway.estimation.lever_arm import (
+    heading_from_antenna_course,
+    lever_arm_position_ned,
+    lever_arm_velocity_ned,
+)
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
     Convergence,
@@ -550,7 +554,8 @@ class EkfEngine:
         self._fix_err_ned_m += dx[FIX]
 
     def _align_heading(self, fix: GnssFix, t_e: float, row: Array) -> None:
-        """First heading from HDT, or from the course at ``align_min_speed_mps`` (forward).
+        """First heading from HDT, or from the antenna's course at ``align_min_speed_mps``
+        (forward; its lever-arm velocity taken out, :func:`heading_from_antenna_course`).
 
         The INS yaw at ``t_e`` is turned onto the reference (history too, keeping the gyro
         motion since), position and velocity are set from the fix, and P starts: position
@@ -565,7 +570,9 @@ class EkfEngine:
         if fix.heading_rad is not None:
             target, sig_yaw = fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD
         elif vel is not None and math.hypot(*vel) >= self.cfg.align_min_speed_mps:
-            target, sig_yaw = math.atan2(vel[1], vel[0]), self.cfg.align_yaw_sigma_deg * DEG_TO_RAD
+            w_e = self._lever_rate(t_e)[0]
+            target = heading_from_antenna_course(vel, row[ROW_C], w_e, self._l_ant_b)
+            sig_yaw = self.cfg.align_yaw_sigma_deg * DEG_TO_RAD
         else:
             return
         ins, hist, tun = self._ins, self._hist, self._tuning

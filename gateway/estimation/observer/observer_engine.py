@@ -48,7 +48,11 @@ from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, fix_velocity_sigma_mps
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
-from gateway.estimation.lever_arm import reference_from_antenna, velocity_at
+from gateway.estimation.lever_arm import (
+    heading_from_antenna_course,
+    reference_from_antenna,
+    velocity_at,
+)
 from gateway.estimation.observer.coast_budget import CoastBudget
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
@@ -445,7 +449,12 @@ class ObserverEngine:
         )
         self._zero_rate_update(t_e, row)
         self._imu.upset = False
-        cog_ref = math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
+        # (before the heading is found C's yaw is arbitrary, and so was v_ref's lever-arm part)
+        cog_ref = (
+            math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
+            if self._heading_aligned
+            else heading_from_antenna_course(v_ant, c_e, w_lever, self._l_ant_f)
+        )
         yaw_rate = c_bn[6] * w_still[0] + c_bn[7] * w_still[1] + c_bn[8] * w_still[2]
         aligned = self._heading_aligned
         self._correct_heading(t_e, row, cog_ref, speed_ref, fix.heading_rad, yaw_rate, c_bn[8])
