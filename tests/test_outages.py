@@ -539,3 +539,33 @@ def test_the_first_heading_is_the_vehicles_not_its_swaying_antennas(engine: Engi
             off.append(f"{t:.2f} s: {err:.1f} deg")
     assert first is not None and first < 16.0, first  # aligned as it reached 1.5 m/s
     assert not off, off[:10]
+
+
+def test_levelled_on_the_move_into_a_turn_the_rate_of_turn_is_the_turns() -> None:
+    """slope-start seed 31 with IMU stalls: the EKF, restarted on the move, levelled on a
+    moving window and started its rate low-pass from the window's mean rate, which ended 0.5 s
+    before: entering a headland turn it sent a rate of turn 7.5 deg/s off. Here, the window
+    on the straight and the turn (17 deg/s) begun when it levels: 15 deg/s off. It now starts
+    from the rate of the last 50-100 ms: every rate of turn within 1 deg/s of the truth."""
+    entry = Motion([Segment(11.0), Segment(10.0, yaw_rate_rps=0.3)], v0_mps=3.0, yaw0_rad=1.0)
+    config = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=LEVER))
+    estimator = make_engine(config.with_engine(Engine.EKF))
+    fixes = gnss_stream(entry, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    off, sent, j = [], 0, 0
+    for s in imu_stream(entry, noise_g_rps=1e-4, noise_a_mps2=0.01):
+        while j < len(fixes) and fixes[j].t <= s.t:
+            estimator.gnss(fixes[j])
+            j += 1
+        estimator.imu(s)
+        rate = estimator.solution().yaw_rate_rps
+        if rate is None:
+            continue
+        sent += 1
+        t = motion_time(s.t)
+        # the output is smoothed: anywhere between the rates of the last 0.3 s is true
+        band = (0.0 if t - 0.3 < 11.0 else 0.3, 0.3 if t >= 11.0 else 0.0)
+        err_dps = math.degrees(max(0.0, band[0] - rate, rate - band[1]))
+        if err_dps > 1.0:
+            off.append(f"{t:.2f} s: {err_dps:.1f} deg/s")
+    assert sent > 1000
+    assert not off, off[:10]

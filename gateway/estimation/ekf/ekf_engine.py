@@ -338,14 +338,20 @@ class EkfEngine:
         if self._seed is not None:
             self._apply_seed(self._seed)
         if created:
-            # The rate low-pass (lever arms, rate of turn) starts from the window's mean rate,
-            # not from rest: levelled in an 11 deg/s turn it sent 1.7 deg/s while ALIGNING.
-            # At rest without a seed that mean is the bias: exactly 0, as before.
+            # The rate low-pass (lever arms, rate of turn) starts from the rate of the moment,
+            # not from rest: levelled in an 11 deg/s turn it sent 1.7 deg/s while ALIGNING. A
+            # moving window's mean rate ended 0.5 s ago: entering a turn it sent 7.5 deg/s
+            # off; the mean since the mark before the last (50-100 ms) is the rate now. At
+            # rest without a seed the window's mean is the bias: exactly 0, as before.
+            w_now = mean[3:]
+            if not self._win_at_rest and len(marks) > 1:
+                _, sums_then, n_then = marks[-2][:3]
+                w_now = (self._win_sum[3:] - sums_then[3:]) / (self._win_n - n_then)
             bg = self._ins.bias_g_rps
             self._ins.w_b_lp_rps = (
-                float(mean[3]) - bg[0],
-                float(mean[4]) - bg[1],
-                float(mean[5]) - bg[2],
+                float(w_now[0]) - bg[0],
+                float(w_now[1]) - bg[1],
+                float(w_now[2]) - bg[2],
             )
 
     # ======================================================================= warm start
