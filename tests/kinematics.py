@@ -16,7 +16,7 @@ are exact at their epoch time and arrive ``latency_s`` later on the host clock.
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -237,18 +237,27 @@ def run(
     every: int = 0,
     on_sample: Callable[[ImuSample], None] | None = None,
 ) -> None:
-    """Feed both streams in host-time order (a fix after the IMU samples stamped before it).
+    """Feed both streams in host-time order (:func:`fed`).
 
     ``on_sample`` is called after every ``every``-th IMU sample (if ``every`` > 0).
     """
+    for k, s in fed(engine, imu, fixes):
+        if on_sample is not None and every > 0 and k % every == 0:
+            on_sample(s)
+
+
+def fed(
+    engine: Estimator, imu: list[ImuSample], fixes: list[GnssFix]
+) -> Iterator[tuple[int, ImuSample]]:
+    """Both streams into ``engine`` in host-time order (a fix after the IMU samples stamped
+    before it); yields each IMU sample, with its index, once the engine has taken it."""
     j = 0
     for k, s in enumerate(imu):
         while j < len(fixes) and fixes[j].t <= s.t:
             engine.gnss(fixes[j])
             j += 1
         engine.imu(s)
-        if on_sample is not None and every > 0 and k % every == 0:
-            on_sample(s)
+        yield k, s
 
 
 def motion_time(sample_t: float) -> float:

@@ -28,6 +28,7 @@ from tests.kinematics import (
     T0_S,
     Motion,
     Segment,
+    fed,
     gnss_stream,
     imu_stream,
     motion_time,
@@ -402,12 +403,8 @@ def test_a_levelling_window_leaves_out_the_stop_and_the_pull_away() -> None:
     )
     imu = imu_stream(STOP_AND_GO, noise_g_rps=1e-4, noise_a_mps2=0.01)
     fixes = gnss_stream(STOP_AND_GO, antenna_lever_arm_m=LEVER, latency_s=0.07)
-    off, first, j = [], None, 0
-    for k, s in enumerate(imu):
-        while j < len(fixes) and fixes[j].t <= s.t:
-            engine.gnss(fixes[j])
-            j += 1
-        engine.imu(s)
+    off, first = [], None
+    for k, s in fed(engine, imu, fixes):
         sol = engine.solution()
         if k % 4 or sol.roll_rad is None or sol.pitch_rad is None or sol.sigma_tilt_rad is None:
             continue
@@ -447,12 +444,8 @@ def test_started_on_the_move_down_a_slope_the_tilt_goes_out_within_its_stated_ac
     imu = imu_stream(DESCENDING, noise_g_rps=1e-4, noise_a_mps2=0.01)
     fixes = gnss_stream(DESCENDING, antenna_lever_arm_m=LEVER, latency_s=0.07, vel_noise_mps=0.02)
     truth = (DESCENDING.roll_rad, DESCENDING.pitch_rad)
-    off, sent, j = [], 0, 0
-    for k, s in enumerate(imu):
-        while j < len(fixes) and fixes[j].t <= s.t:
-            estimator.gnss(fixes[j])
-            j += 1
-        estimator.imu(s)
+    off, sent = [], 0
+    for k, s in fed(estimator, imu, fixes):
         sol = estimator.solution()
         if k % 4 or sol.roll_rad is None or sol.pitch_rad is None or sol.sigma_tilt_rad is None:
             continue
@@ -484,15 +477,12 @@ def test_a_moving_window_levels_to_the_attitude_of_the_moment_on_rocking_ground(
     config = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=LEVER))
     estimator = make_engine(config.with_engine(Engine.EKF))
     fixes = gnss_stream(rocking, antenna_lever_arm_m=LEVER, latency_s=0.07)
-    j = 0
-    for s in imu_stream(rocking, noise_g_rps=1e-4, noise_a_mps2=0.01):
-        while j < len(fixes) and fixes[j].t <= s.t:
-            estimator.gnss(fixes[j])
-            j += 1
-        estimator.imu(s)
-        sol = estimator.solution()
-        if sol.roll_rad is not None and sol.pitch_rad is not None:
-            break
+    imu = imu_stream(rocking, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    s, sol = next(
+        (s, sol)
+        for _, s in fed(estimator, imu, fixes)
+        if (sol := estimator.solution()).roll_rad is not None and sol.pitch_rad is not None
+    )
     c_bn = state_at(rocking, motion_time(s.t)).c_bn[0]
     roll, pitch = math.atan2(c_bn[2, 1], c_bn[2, 2]), -math.asin(c_bn[2, 0])
     assert sol.roll_rad is not None and sol.pitch_rad is not None
@@ -523,13 +513,11 @@ def test_the_first_heading_is_the_vehicles_not_its_swaying_antennas(engine: Engi
     config = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=LEVER))
     estimator = make_engine(config.with_engine(engine))
     fixes = gnss_stream(ROCKING_START, antenna_lever_arm_m=LEVER, latency_s=0.07)
-    off, first, j = [], None, 0
-    for s in imu_stream(ROCKING_START, noise_g_rps=1e-4, noise_a_mps2=0.01):
-        while j < len(fixes) and fixes[j].t <= s.t:
-            estimator.gnss(fixes[j])
-            j += 1
-        estimator.imu(s)
-        yaw = estimator.solution().yaw_rad
+    off, first = [], None
+    imu = imu_stream(ROCKING_START, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    for _, s in fed(estimator, imu, fixes):
+        sol = estimator.solution()
+        yaw = sol.yaw_rad
         if yaw is None:
             continue
         t = motion_time(s.t)
@@ -551,13 +539,11 @@ def test_levelled_on_the_move_into_a_turn_the_rate_of_turn_is_the_turns() -> Non
     config = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=LEVER))
     estimator = make_engine(config.with_engine(Engine.EKF))
     fixes = gnss_stream(entry, antenna_lever_arm_m=LEVER, latency_s=0.07)
-    off, sent, j = [], 0, 0
-    for s in imu_stream(entry, noise_g_rps=1e-4, noise_a_mps2=0.01):
-        while j < len(fixes) and fixes[j].t <= s.t:
-            estimator.gnss(fixes[j])
-            j += 1
-        estimator.imu(s)
-        rate = estimator.solution().yaw_rate_rps
+    off, sent = [], 0
+    imu = imu_stream(entry, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    for _, s in fed(estimator, imu, fixes):
+        sol = estimator.solution()
+        rate = sol.yaw_rate_rps
         if rate is None:
             continue
         sent += 1
@@ -589,8 +575,7 @@ def test_parked_after_a_restart_the_stated_tilt_sigma_covers_the_noise() -> None
         estimator = make_engine(config.with_engine(Engine.EKF))
         assert estimator.seed(learned)
         imu = imu_stream(parked, noise_g_rps=8.2e-3, noise_a_mps2=0.2, seed=seed)
-        for k, s in enumerate(imu):
-            estimator.imu(s)
+        for k, _ in fed(estimator, imu, []):
             sol = estimator.solution()
             if k % 100 or sol.roll_rad is None or sol.pitch_rad is None:
                 continue
