@@ -585,3 +585,39 @@ def test_parked_after_a_restart_the_stated_tilt_sigma_covers_the_noise() -> None
     rms = math.sqrt(sum(x * x for x in normalised) / len(normalised))
     assert len(normalised) > 300
     assert 0.5 < rms < 1.5, rms
+
+
+def test_after_an_outage_the_stated_tilt_sigma_decays_with_the_drift_it_covered() -> None:
+    """outages seed 31 (stall check): at the end of a GNSS outage the observer's stated tilt
+    sigma went from 0.61 deg (the coast's open-loop gyro drift) to 0.09 at once while roll
+    was still 0.43 deg off: the tilt loop takes seconds to remove what the coast built. The
+    drift now decays with the loop. Here a warm observer (gyro bias 1-sigma 0.005 deg/s)
+    whose x gyro bias shifts 0.01 deg/s as a 40 s outage begins: every roll and pitch within
+    0.1 deg plus 3 stated sigmas, DEGRADED or not."""
+    drive = Motion([Segment(10.0), Segment(5.0, accel_mps2=0.6), Segment(85.0)], yaw0_rad=1.0)
+    shift = math.radians(0.01)
+    imu = [
+        s if motion_time(s.t) < 40.0
+        else dataclasses.replace(s, w_ib_b=(s.w_ib_b[0] + shift, s.w_ib_b[1], s.w_ib_b[2]))
+        for s in imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    ]  # fmt: skip
+    fixes = [
+        f for f in gnss_stream(drive, antenna_lever_arm_m=LEVER, latency_s=0.07)
+        if not 40.0 <= f.t - T0_S < 80.0
+    ]  # fmt: skip
+    config = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=LEVER))
+    estimator = make_engine(config.with_engine(Engine.OBSERVER))
+    sigma_g = math.radians(0.005)
+    assert estimator.seed(LearnedState((0.0,) * 3, (sigma_g,) * 3, (0.0,) * 3, (2e-3,) * 3))
+    off, after = [], 0
+    for k, s in fed(estimator, imu, fixes):
+        sol = estimator.solution()
+        if k % 4 or sol.roll_rad is None or sol.pitch_rad is None or sol.sigma_tilt_rad is None:
+            continue
+        t = motion_time(s.t)
+        after += t > 80.0
+        err = math.degrees(max(abs(sol.roll_rad), abs(sol.pitch_rad)))
+        if err > 0.1 + 3.0 * math.degrees(sol.sigma_tilt_rad):
+            off.append(f"{t:.2f} s: {err:.2f} deg, stated {math.degrees(sol.sigma_tilt_rad):.3f}")
+    assert after > 500
+    assert not off, off[:10]
