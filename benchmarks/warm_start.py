@@ -47,7 +47,7 @@ def second_run(
         keeper.load()
     inputs = LogInputs(run.imu_log, run.gnss_log, imu_config(config))
     warm = keeper.warm_start if keeper is not None and keeper.stored else None
-    core = FusionCore.from_config(config, inputs.imu_decoder.counters, warm_start=warm)
+    core = FusionCore.from_config(config, inputs.imu_lost, warm_start=warm)
     trace = record_core(core, inputs)
     return start_accuracy(trace, Truth.load(run.truth_file)), core.warm_started
 

@@ -13,8 +13,9 @@ import pytest
 from drivers.logs.candump import CandumpWriter, read_candump
 from gateway.config.gateway_config import load_config
 from gateway.estimation.solution import Mode
-from gateway.fusion.fusion_core import FusionCore
+from gateway.fusion.fusion_core import LOST_WINDOW_S, FusionCore
 from gateway.isobus.j1939 import Pgn, can_id
+from gateway.offline import log_inputs
 from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
@@ -66,6 +67,49 @@ def test_damaged_logs_are_counted_not_fatal(run_dir: Path, tmp_path: Path) -> No
     accel_frames = sum(" 0CFF1180#" in line for line in lines[:10000])  # each closes a sample
     assert summary.stats.imu_samples == accel_frames  # every intact sample survives
     assert summary.stats.frames_out > 0
+
+
+def test_decoding_ahead_tells_each_loss_on_the_bus_when_one_at_a_time_would(
+    run_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
+    """Replay decodes the CAN log up to DECODE_AHEAD inputs ahead of the fusion core; the
+    IMU samples lost on the bus reach NAVGW_STATUS (byte 6) with the input after the gap,
+    exactly as with a decoder fed one frame at a time: byte-identical output."""
+    lines = (run_dir / "imu.log").read_text().splitlines(keepends=True)
+    gyro = [i for i, line in enumerate(lines) if " 0CFF1080#" in line]  # each opens a sample
+    cuts = {4000: 6, 9000: 40, 12000: 200, 16000: 2}  # from the sample at line ~k: n samples
+    kept, i, gap_s = [], 0, {}
+    for k, n in sorted(cuts.items()):
+        j = next(x for x, line in enumerate(gyro) if line >= k)
+        kept += lines[i : gyro[j]]
+        i = gyro[j + n]
+        gap_s[n] = (stamp(lines[gyro[j] - 1]), stamp(lines[i]))
+    gappy = tmp_path / "imu.log"
+    gappy.write_text("".join(kept + lines[i:]))
+    outputs = {}
+    for ahead in (log_inputs.DECODE_AHEAD, 1):
+        monkeypatch.setattr(log_inputs, "DECODE_AHEAD", ahead)
+        out = tmp_path / f"ahead{ahead}.log"
+        summary = replay(gappy, run_dir / "gnss.nmea", out)
+        assert summary.imu.lost == sum(cuts.values())
+        outputs[ahead] = out.read_bytes()
+    assert outputs[1] == outputs[log_inputs.DECODE_AHEAD]
+    told = [
+        (float(f.timestamp), f.data[6])
+        for f in read_candump(tmp_path / "ahead1.log")
+        if (f.arbitration_id >> 8) & 0x3FFFF == Pgn.NAVGW_STATUS
+    ]
+    # each loss is told from the first sample after the gap (stamped with its sample time, a
+    # little before its frame arrived), counted exactly
+    for n in (40, 200):
+        after = [lost for t, lost in told if t >= gap_s[n][1] - 0.01]
+        assert after[0] == n
+        assert max(after[: int(LOST_WINDOW_S / 0.1) - 1]) == n  # for a second: 10 Hz STATUS
+
+
+def stamp(line: str) -> float:
+    """The host time of a candump -L line."""
+    return float(line.split(")")[0][1:])
 
 
 def test_other_nodes_claims_and_requests_replay_into_our_answers(

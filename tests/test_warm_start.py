@@ -80,7 +80,7 @@ def start(run: SimRun, engine: Engine, state_dir: Path | None) -> tuple[StartAcc
     keeper = StateKeeper(config, state_dir) if state_dir is not None else None
     warm = keeper.warm_start if keeper is not None and keeper.load() else None
     inputs = LogInputs(run.imu_log, run.gnss_log, imu_config(config))
-    core = FusionCore.from_config(config, inputs.imu_decoder.counters, warm_start=warm)
+    core = FusionCore.from_config(config, inputs.imu_lost, warm_start=warm)
     return start_accuracy(record_core(core, inputs), Truth.load(run.truth_file)), core.warm_started
 
 
@@ -202,7 +202,7 @@ def test_an_engine_restarted_after_an_imu_gap_keeps_what_it_learned(runs: Runs) 
     inputs = LogInputs(runs.second.imu_log, runs.second.gnss_log, imu_config(config))
     keeper = StateKeeper(config, runs.state_dir)
     keeper.load()
-    core = FusionCore.from_config(config, inputs.imu_decoder.counters, keeper.warm_start)
+    core = FusionCore.from_config(config, inputs.imu_lost, keeper.warm_start)
     t0, before, after = None, None, None
     for item in inputs:
         t0 = item.t if t0 is None else t0
@@ -319,7 +319,7 @@ def test_without_the_imu_temperature_the_start_is_cold(
     inputs = LogInputs(runs.second.imu_log, runs.second.gnss_log, imu_config(config))
     keeper = StateKeeper(config, runs.state_dir)
     assert keeper.load() is not None
-    core = FusionCore.from_config(config, inputs.imu_decoder.counters, keeper.warm_start)
+    core = FusionCore.from_config(config, inputs.imu_lost, keeper.warm_start)
     t0 = None
     with caplog.at_level(logging.WARNING, logger="gateway"):
         for item in inputs:

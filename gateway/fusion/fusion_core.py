@@ -48,6 +48,7 @@ from dataclasses import dataclass, replace
 from functools import partial
 from importlib import metadata
 from itertools import chain
+from typing import Protocol
 
 import can
 
@@ -116,6 +117,15 @@ class FusionStats:
     imu_saturated: int = 0  # samples withheld from the engine: an axis at its range's end
 
 
+class ImuLossCount(Protocol):
+    """Where the core reads how many IMU samples were lost on the bus so far: live, the
+    decoder's :class:`~drivers.samples.ImuCounters`; in replay, which decodes ahead, the count
+    as of the input in hand (:class:`~gateway.offline.log_inputs.SeenLoss`)."""
+
+    @property
+    def lost(self) -> int: ...
+
+
 class FusionCore:
     """Feeds the engine, runs the address claim and the output scheduler."""
 
@@ -125,7 +135,7 @@ class FusionCore:
         scheduler: OutputScheduler,
         claimer: AddressClaimer,
         network: NetworkManager,
-        imu_counters: ImuCounters | None = None,
+        imu_lost: ImuLossCount | None = None,
         make_engine: Callable[[], LearningEstimator] | None = None,
         warm_start: WarmStart | None = None,
         track_rest: bool = False,
@@ -138,7 +148,7 @@ class FusionCore:
         self.network = network
         self.guard = OutputGuard()
         self.stats = FusionStats()
-        self._imu_counters = imu_counters or ImuCounters()
+        self._imu_lost = imu_lost or ImuCounters()
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
         self._last_sample: ImuSample | None = None
         self._saturated = False  # saturated samples since the last good one
@@ -156,7 +166,7 @@ class FusionCore:
     def from_config(
         cls,
         config: GatewayConfig,
-        imu_counters: ImuCounters | None = None,
+        imu_lost: ImuLossCount | None = None,
         warm_start: WarmStart | None = None,
         track_rest: bool = False,
     ) -> FusionCore:
@@ -197,7 +207,7 @@ class FusionCore:
             scheduler=scheduler,
             claimer=claimer,
             network=NetworkManager(claimer, product, periodic=scheduler.rates_hz),
-            imu_counters=imu_counters,
+            imu_lost=imu_lost,
             warm_start=warm_start,
             track_rest=track_rest,
         )
@@ -416,7 +426,7 @@ class FusionCore:
     def loop_status(self, t: float) -> LoopStatus:
         """What the loop adds to the solution: address, claim state, recent IMU losses (on
         the bus, and dropped by the live loop). The same object while none of it changes."""
-        lost = self._imu_counters.lost + self.stats.imu_dropped
+        lost = self._imu_lost.lost + self.stats.imu_dropped
         marks = self._lost_marks
         marks.append((t, lost))
         while marks and marks[0][0] < t - LOST_WINDOW_S:

@@ -70,7 +70,7 @@ def replay(
     inputs = LogInputs(can_log, nmea_log, imu_config(config))
     warm_start = keeper.warm_start if keeper is not None and keeper.stored else None
     core = FusionCore.from_config(
-        config, inputs.imu_decoder.counters, warm_start=warm_start, track_rest=keeper is not None
+        config, inputs.imu_lost, warm_start=warm_start, track_rest=keeper is not None
     )
     # the recorded gateway's own frames are no one else's (its claims, and from its address)
     inputs.own_name, inputs.own_address = core.claimer.name, config.isobus.preferred_address
