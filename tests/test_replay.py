@@ -69,12 +69,13 @@ def test_damaged_logs_are_counted_not_fatal(run_dir: Path, tmp_path: Path) -> No
     assert summary.stats.frames_out > 0
 
 
-def test_decoding_ahead_tells_each_loss_on_the_bus_when_one_at_a_time_would(
+def test_decoding_ahead_tells_each_loss_on_the_bus_when_live_would(
     run_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     """Replay decodes the CAN log up to DECODE_AHEAD inputs ahead of the fusion core; the
-    IMU samples lost on the bus reach NAVGW_STATUS (byte 6) with the input after the gap,
-    exactly as with a decoder fed one frame at a time: byte-identical output."""
+    IMU samples lost on the bus reach NAVGW_STATUS (byte 6) with the first sample after the
+    gap, as live: byte-identical to decoding one input at a time, and never, at a GNSS fix
+    within the gap, a loss the bus has not shown yet."""
     lines = (run_dir / "imu.log").read_text().splitlines(keepends=True)
     gyro = [i for i, line in enumerate(lines) if " 0CFF1080#" in line]  # each opens a sample
     cuts = {4000: 6, 9000: 40, 12000: 200, 16000: 2}  # from the sample at line ~k: n samples
@@ -99,12 +100,18 @@ def test_decoding_ahead_tells_each_loss_on_the_bus_when_one_at_a_time_would(
         for f in read_candump(tmp_path / "ahead1.log")
         if (f.arbitration_id >> 8) & 0x3FFFF == Pgn.NAVGW_STATUS
     ]
-    # each loss is told from the first sample after the gap (stamped with its sample time, a
-    # little before its frame arrived), counted exactly
+    rate_hz = 204.8
     for n in (40, 200):
-        after = [lost for t, lost in told if t >= gap_s[n][1] - 0.01]
+        start, end = gap_s[n]
+        # within the gap (FAULT, IMU silent): the samples missed so far, no more
+        within = [(t, lost) for t, lost in told if start < t < end - 0.01]
+        assert all(lost <= (t - start) * rate_hz + 1 for t, lost in within), within
+        # from the first sample after it (stamped with its sample time, a little before
+        # its frame arrived): the gap's count, for a second (STATUS at 10 Hz)
+        after = [lost for t, lost in told if t >= end - 0.01]
         assert after[0] == n
-        assert max(after[: int(LOST_WINDOW_S / 0.1) - 1]) == n  # for a second: 10 Hz STATUS
+        assert max(after[: int(LOST_WINDOW_S / 0.1) - 1]) == n
+    assert any(lost > 0 for t, lost in told if gap_s[200][0] < t < gap_s[200][1] - 0.01)
 
 
 def stamp(line: str) -> float:

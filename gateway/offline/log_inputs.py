@@ -16,8 +16,9 @@ drops our own frames the same way before the claimer sees them.
 
 from __future__ import annotations
 
+from collections import deque
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 
 import can
@@ -43,11 +44,14 @@ DECODE_AHEAD = 256
 
 @dataclass
 class SeenLoss:
-    """The IMU samples lost on the bus as of the input last handed out: what the live
-    decoder's counters would say at that point (the decoder's own run ahead). The fusion
-    core reports it on the bus (NAVGW_STATUS), so a replay tells a loss when live would."""
+    """The IMU samples lost on the bus as of the input last handed out: what a live
+    decoder's counters say when that input reaches the fusion core (this decoder reads
+    ahead). The core reports it on the bus (NAVGW_STATUS byte 6), so a replay tells a loss
+    when live would: with the first input after the gap, not at a GNSS fix within it."""
 
     lost: int = 0
+    #: (the first input decoded after a loss, the count then), oldest first
+    pending: deque[tuple[object, int]] = field(default_factory=deque)
 
 
 class LogInputs:
@@ -88,21 +92,21 @@ class LogInputs:
     def __iter__(self) -> Iterator[Input]:
         self.nmea_reader = read_nmea_log(self.nmea_log)
         gnss = read_fixes_from_log(self.nmea_reader, self.nmea_decoder)
-        return _merged(self._can_inputs(), gnss)
+        return _merged(self._can_inputs(), gnss, self.imu_lost)
 
     def _can_inputs(self) -> Iterator[ImuSample | ImuAux | BusFrame]:
         """IMU samples from the bridge's frames; the other nodes' frames as they are.
 
         Decoded up to :data:`DECODE_AHEAD` inputs ahead, in order; a loss the decoder finds
-        is handed on (:attr:`imu_lost`) with the first input decoded after it, as a decoder
-        fed one frame at a time would show it.
+        goes with the first input decoded after it (:attr:`imu_lost`).
         """
         decoder = self.imu_decoder
         feed_record = decoder.feed_record
         bridge = decoder.frame_keys
         key_mask = decoder.key_mask
-        counters, seen = decoder.counters, self.imu_lost
-        lost = seen.lost = counters.lost
+        counters, pending = decoder.counters, self.imu_lost.pending
+        lost = self.imu_lost.lost = counters.lost
+        loss = False  # a loss found, not yet given to an input
         ahead: list[ImuSample | ImuAux | BusFrame] = []
         keep = ahead.append
         item: ImuSample | ImuAux | BusFrame | None
@@ -120,11 +124,12 @@ class LogInputs:
                     item = BusFrame(float(msg.timestamp), msg)
                 else:
                     item = feed_record(msg)  # the bridge's; and the others' the decoder counts
-            if counters.lost != lost:  # the inputs before the loss go out without it
-                yield from ahead
-                ahead.clear()
-                lost = seen.lost = counters.lost
+            if counters.lost != lost:
+                lost, loss = counters.lost, True
             if item is not None:
+                if loss:
+                    pending.append((item, lost))
+                    loss = False
                 keep(item)
                 if len(ahead) >= DECODE_AHEAD:
                     yield from ahead
@@ -150,16 +155,22 @@ class LogInputs:
 
 
 def _merged(
-    can_inputs: Iterator[ImuSample | ImuAux | BusFrame], fixes: Iterator[GnssFix]
+    can_inputs: Iterator[ImuSample | ImuAux | BusFrame],
+    fixes: Iterator[GnssFix],
+    seen: SeenLoss,
 ) -> Iterator[Input]:
     """The two streams merged by ``t`` as ``heapq.merge(can_inputs, fixes, key=t)`` does
     (the smaller head first, the CAN input on a tie), without a key call and a heap step per
-    item: fixes are fifty times rarer than IMU samples."""
+    item: fixes are fifty times rarer than IMU samples. A loss pending for a CAN input
+    (:class:`SeenLoss`) is told as that input goes out."""
     fix = next(fixes, None)
+    pending = seen.pending
     for item in can_inputs:
         while fix is not None and fix.t < item.t:
             yield fix
             fix = next(fixes, None)
+        if pending and pending[0][0] is item:
+            seen.lost = pending.popleft()[1]
         yield item
     if fix is not None:
         yield fix
