@@ -303,6 +303,21 @@ class Strapdown:
 # --- error-state propagation ---------------------------------------------------------------
 
 
+def _flat(rows: slice, cols: slice) -> npt.NDArray[np.intp]:
+    """Flat indices of the block (rows, cols) of an (18, 18) matrix."""
+    return np.arange(N_STATES * N_STATES).reshape(N_STATES, N_STATES)[rows, cols]
+
+
+#: Phi's blocks as :func:`transition_matrix` writes them: (p, phi), (v, phi), (p, ba),
+#: (v, ba), (phi, bg), (p, bg), (v, bg); then the diagonals T I (p, v) and fix_decay I.
+_PHI_BLOCKS = np.array(
+    [_flat(POS, ATT), _flat(VEL, ATT), _flat(POS, BA), _flat(VEL, BA), _flat(ATT, BG),
+     _flat(POS, BG), _flat(VEL, BG)]
+)  # fmt: skip
+_PHI_T = np.diagonal(_flat(POS, VEL)).copy()
+_PHI_FIX = np.diagonal(_flat(FIX, FIX)).copy()
+
+
 def transition_matrix(
     t_s: float, dv_f_ned_mps: Array, c_dt: Array, fix_decay: float = 1.0
 ) -> Array:
@@ -323,17 +338,13 @@ def transition_matrix(
     fv = np.array(((0.0, z, -y), (-z, 0.0, x), (y, -x, 0.0)))  # -[f_n T]x
     g = -c_dt
     fv_g = fv @ g
+    blocks = np.array((fv, fv, g, g, g, fv_g, fv_g))
+    half_t = 0.5 * t_s
+    blocks *= np.array((half_t, 1.0, half_t, 1.0, 1.0, t_s / 6.0, 0.5))[:, None, None]
     phi = _I_N.copy()
-    for i in range(3):  # the diagonal blocks T I (p, v) and fix_decay I
-        phi[i, 3 + i] = t_s
-        phi[15 + i, 15 + i] = fix_decay
-    phi[POS, ATT] = (0.5 * t_s) * fv
-    phi[POS, BA] = (0.5 * t_s) * g
-    phi[POS, BG] = (t_s / 6.0) * fv_g
-    phi[VEL, ATT] = fv
-    phi[VEL, BA] = g
-    phi[VEL, BG] = 0.5 * fv_g
-    phi[ATT, BG] = g
+    phi.put(_PHI_BLOCKS, blocks)  # (one call for seven 3 x 3 blocks: 8 us -> 6.5 a step)
+    phi.put(_PHI_T, t_s)
+    phi.put(_PHI_FIX, fix_decay)
     return phi
 
 
