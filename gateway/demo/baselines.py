@@ -194,8 +194,9 @@ class RunSetup:
         return replace(cfg, **overrides)  # type: ignore[arg-type]
 
 
-def _ekf(setup: RunSetup, covariance_period_s: float = 0.05) -> Estimator:
-    """The EKF; ``covariance_period_s`` 0 propagates the covariance at every IMU sample."""
+def _ekf(setup: RunSetup, **overrides: float) -> Estimator:
+    """The EKF, default config but the run's lever arms and ``overrides`` (e.g.
+    ``covariance_period_s`` 0: the covariance propagated at every IMU sample)."""
     from gateway.estimation.ekf.ekf_config import EkfConfig
     from gateway.estimation.ekf.ekf_engine import EkfEngine
 
@@ -203,7 +204,7 @@ def _ekf(setup: RunSetup, covariance_period_s: float = 0.05) -> Estimator:
         EkfConfig(
             antenna_lever_arm_m=setup.antenna_lever_arm_m,
             imu_lever_arm_m=setup.imu_lever_arm_m,
-            covariance_period_s=covariance_period_s,
+            **overrides,  # type: ignore[arg-type]
         )
     )
 

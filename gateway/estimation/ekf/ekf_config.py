@@ -74,11 +74,13 @@ class EkfConfig:
 
     # --- land-vehicle pseudo-measurements ---
     nhc_sigma_mps: float = 0.05  # reference-point lateral/vertical body velocity 1-sigma
-    nhc_interval_s: float = 0.1  # non-holonomic constraint fused this often
+    nhc_interval_s: float = 0.1  # non-holonomic constraint fused this often (with the epochs)
     hdt_sigma_deg: float = 0.2  # dual-antenna heading 1-sigma
 
     # --- covariance propagation ---
-    covariance_period_s: float = 0.05  # F accumulated over the IMU samples of this interval
+    # the covariance is stepped at each GNSS epoch, and after this long without one (F
+    # accumulated over the IMU samples of the interval): 1.5 epochs of a 10 Hz receiver
+    covariance_period_s: float = 0.15
 
     # --- initial alignment ---
     align_quiet_rate_dps: float = 2.0  # |w| below this counts as still

@@ -1,10 +1,12 @@
 """The EKF engine: 18-state loosely coupled GNSS/INS filter behind the Estimator protocol.
 
-Per IMU sample (:meth:`EkfEngine.imu`): strapdown mechanisation of the IMU point, a history
-row (for late GNSS epochs), and every ``covariance_period_s`` the covariance prediction from
-the accumulated IMU sums, then the non-holonomic constraint every ``nhc_interval_s``. Per GNSS
-epoch (:meth:`EkfEngine.gnss`): epoch time, then alignment, reset or fusion of position,
-horizontal velocity and HDT. Pure code: no I/O, no clock; time comes from the samples.
+Per IMU sample (:meth:`EkfEngine.imu`): strapdown mechanisation of the IMU point and a
+history row (for late GNSS epochs). Per GNSS epoch (:meth:`EkfEngine.gnss`): epoch time, then
+alignment, reset, or the covariance prediction from the accumulated IMU sums, the fusion of
+position, horizontal velocity and HDT of the epoch's instant, then the non-holonomic
+constraint at the state of now (every ``nhc_interval_s``). Without an epoch for
+``covariance_period_s`` (an outage, a slow receiver) the IMU path steps the covariance and
+fuses the constraint itself. Pure code: no I/O, no clock; time comes from the samples.
 
 Design choices (ALGORITHMS.md 3 leaves them to the implementer):
 
@@ -17,9 +19,9 @@ Design choices (ALGORITHMS.md 3 leaves them to the implementer):
   applied to the current state (and to the history, so that the next epoch is not double
   counted). Approximation: the error state is taken as constant over the delay (< 0.1 s:
   dv * delay is ~1 mm).
-- Covariance runs at ~20 Hz on IMU sums
-  (:func:`gateway.estimation.ekf.error_state.transition_matrix`), flushed
-  before every update.
+- Covariance runs at the GNSS epochs (10 Hz with an RTK receiver) on IMU sums
+  (:func:`gateway.estimation.ekf.error_state.transition_matrix`), flushed before every
+  update, and every ``covariance_period_s`` between epochs.
 - GNSS position: the receiver's error is three Gauss-Markov states plus a white share
   (:mod:`gateway.estimation.gnss_error`, the model of the observer's position channel),
   restarted when the fix quality changes (a new receiver solution). RTK float and DGNSS are
@@ -75,6 +77,7 @@ from gateway.estimation.ekf.error_state import (
     fuse_velocity,
     predict,
     process_noise_psd,
+    set_symmetrised,
     transition_matrix,
 )
 from gateway.estimation.ekf.ins_history import ROW_C, ROW_P, ROW_V, InsHistory
@@ -127,6 +130,9 @@ COG_RELIABLE_SPEED_MPS = 0.1
 
 #: Half width of the window of body rates averaged for the antenna lever-arm velocity.
 LEVER_RATE_HALF_WIDTH_S = 0.05
+#: The non-holonomic constraint is due ``nhc_interval_s`` after the last to within this, s
+#: (a 10 Hz receiver's epochs arrive 0.1 s apart give or take the serial line's jitter).
+NHC_SLACK_S = 0.01
 
 
 @dataclass
@@ -198,6 +204,8 @@ class EkfEngine:
         self._t_pos_epoch_s: float | None = None  # epoch of the last accepted position
         self._track = GnssTrack()  # the receiver's own track: glitch or filter off?
         self._t_nhc_s = -math.inf
+        # the IMU path steps the covariance after this much time (s) without a step
+        self._step_s = self.cfg.covariance_period_s
         # motion flags and IMU health
         self._reversing = False
         self._stationary = False
@@ -229,9 +237,10 @@ class EkfEngine:
         ins.propagate(w, f, dt)
         assert self._hist is not None
         self._hist.append((t, *ins.p_ned_m, *ins.v_ned_mps, *ins.c_bn9, *ins.w_b_rps))
-        if self._p is not None and ins.sum_dt_s >= self.cfg.covariance_period_s:
+        if self._p is not None and ins.sum_dt_s >= self._step_s:
             self._predict()
-            if t - self._t_nhc_s >= self.cfg.nhc_interval_s:
+            self._step_s = self.cfg.nhc_interval_s  # no epoch: step with the constraint
+            if t - self._t_nhc_s >= self.cfg.nhc_interval_s - NHC_SLACK_S:
                 self._fuse_nonholonomic(t)
         if self._held:  # (no generator per sample when none waits)
             for t_e, fix in self._held.due(t):
@@ -447,6 +456,7 @@ class EkfEngine:
         if self._hist.spacing(t_e) > MAX_IMU_STEP_S:
             return  # within an IMU gap: the history there is a straight line, no state
         self._predict()
+        self._step_s = self.cfg.covariance_period_s  # the next epoch steps it, if in time
         p = self._p
         sig_pos = self._position_sigma(fix)
         if sig_pos is not None:
@@ -515,6 +525,10 @@ class EkfEngine:
         if accepted:
             self._t_accepted_rx_s = fix.t
             self._inject(dx, t_e)
+        t = self._t_s
+        assert t is not None  # (the history has rows)
+        if t - self._t_nhc_s >= self.cfg.nhc_interval_s - NHC_SLACK_S:
+            self._fuse_nonholonomic(t)  # at the state of now, however late the epoch
 
     def _lever_rate(self, t_e: float) -> tuple[Array, float]:
         """Body rate at ``t_e`` for the antenna lever-arm velocity, and that velocity's 1-sigma.
@@ -762,6 +776,7 @@ class EkfEngine:
         p[FIX, FIX] = wander
         self._fix_err_ned_m[:] = 0.0
         p[VEL, VEL] += self.cfg.align_vel_sigma_mps**2 * np.eye(3)
+        set_symmetrised(p, p.copy())  # (m P m^T and the levelling's terms, rounded apart)
         self._t_pos_epoch_s = t_e
         self._imu_gaps_at_reset = self._imu.timing.gaps
         self._track.accepted()

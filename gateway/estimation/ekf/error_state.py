@@ -158,7 +158,7 @@ def correct(p: Array, dx: Array, m: Measurement, gate_sigma: float) -> Correctio
         return Correction(m.name, nis, False)
     k = ph @ s_inv
     dx += k @ z
-    _set_symmetrised(p, p - k @ ph.T)
+    set_symmetrised(p, p - k @ ph.T)
     return Correction(m.name, nis, True)
 
 
@@ -182,7 +182,7 @@ def inverse_small(s: Array) -> Array:
     )  # fmt: skip
 
 
-def _set_symmetrised(p: Array, p_new: Array) -> None:
+def set_symmetrised(p: Array, p_new: Array) -> None:
     """p <- (p_new + p_new^T) / 2 in place: rounding leaves the products slightly asymmetric."""
     np.add(p_new, p_new.T, out=p)
     p *= 0.5
@@ -325,10 +325,10 @@ def transition_matrix(
 
     A = F T with F averaged over the interval (f_n T = integral f_n dt, C T = integral C dt);
     A^4 = 0 (the chain bg -> phi -> v -> p is three long), so I + A + A^2/2 + A^3/6 is
-    exp(A) exactly for the averaged F. Averaging F over up to ~50 ms instead of stepping it at
-    every sample is checked in tests/test_ekf.py and by the `ekf-cov-every-sample` engine of
-    benchmarks/accuracy.py. The fix-error states are uncoupled: they decay by ``fix_decay``,
-    exp(-T / tau_fix).
+    exp(A) exactly for the averaged F. Averaging F over a GNSS epoch interval (0.1 s at
+    10 Hz, at most ``covariance_period_s``) instead of stepping it at every sample is checked
+    in tests/test_ekf.py and by the `ekf-cov-every-sample` engine of benchmarks/accuracy.py.
+    The fix-error states are uncoupled: they decay by ``fix_decay``, exp(-T / tau_fix).
 
     The blocks of the series, written out (with Fv = -[f_n T]x, G = -C T):
     I + A: T I (p, v), Fv (v, phi), G (v, ba), G (phi, bg); A^2 / 2: T Fv / 2 (p, phi),
@@ -369,7 +369,7 @@ def predict(p: Array, phi: Array, q_c: Array, t_s: float) -> None:
     p.ravel()[:: N_STATES + 1] += half_q  # the diagonal (P is C-contiguous: a view)
     p_new = phi @ p @ phi.T
     p_new.ravel()[:: N_STATES + 1] += half_q
-    _set_symmetrised(p, p_new)
+    set_symmetrised(p, p_new)
 
 
 # --- measurement models --------------------------------------------------------------------
