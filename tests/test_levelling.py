@@ -30,6 +30,19 @@ def test_at_rest_or_before_any_velocity_the_window_adds_nothing() -> None:
     assert motion.tilt_sigma_rad() == 0.0
 
 
+def test_after_a_restart_on_the_move_a_window_without_velocity_is_of_unknown_motion() -> None:
+    """An engine that takes over from one that saw the vehicle moving (``moving_before``):
+    no GNSS velocity in the window (an outage) is not a parked vehicle; slow velocities
+    still are."""
+    motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1, moving_before=True)
+    assert motion.tilt_sigma_rad() == UNKNOWN_MOTION_TILT_RAD
+    motion.restart()  # (a new window of the same engine)
+    assert motion.tilt_sigma_rad() == UNKNOWN_MOTION_TILT_RAD
+    for k in range(11):
+        motion.add(fix(0.1 * k, 0.03))
+    assert motion.tilt_sigma_rad() == 0.0
+
+
 @pytest.mark.parametrize("accel_mps2", [0.3, 0.84, 2.0])
 def test_a_speeding_up_window_carries_its_acceleration_over_g(accel_mps2: float) -> None:
     motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1)

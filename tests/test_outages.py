@@ -7,6 +7,7 @@ method) and as raw NAVGW_STATUS bytes.
 
 from __future__ import annotations
 
+import bisect
 import dataclasses
 import math
 from pathlib import Path
@@ -35,6 +36,7 @@ from tests.kinematics import (
     state_at,
 )
 from tests.n2k_check import Decoded, decode_log
+from tests.test_tilt_sigma_honest import stated_sigma_deg
 
 LEVER = (0.5, 0.0, -3.0)
 STATUS_ID = 0x18FF221C
@@ -621,3 +623,52 @@ def test_after_an_outage_the_stated_tilt_sigma_decays_with_the_drift_it_covered(
             off.append(f"{t:.2f} s: {err:.2f} deg, stated {math.degrees(sol.sigma_tilt_rad):.3f}")
     assert after > 500
     assert not off, off[:10]
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_restarted_in_an_outage_while_speeding_up_the_tilt_is_not_taken_for_level(
+    tmp_path: Path, engine: Engine
+) -> None:
+    """outages seed 42 (stall check): an IMU stall during a GNSS outage while driving; the
+    restarted observer levelled on a window without GNSS velocity, taken for a parked
+    vehicle's, and stated its seed's 0.09 deg with pitch 0.5 deg off. The core now tells a
+    restarted engine the vehicle was moving: such a window is of unknown motion until GNSS
+    velocity returns. Here the stall ends as the vehicle speeds up at 0.5 m/s^2 (2.9 deg of
+    pitch to a levelling): every roll and pitch sent within 0.1 deg + 3 stated sigmas."""
+    drive = Motion(
+        [Segment(10.0), Segment(5.0, accel_mps2=0.6), Segment(40.0), Segment(4.0, accel_mps2=0.5),
+         Segment(26.0)],
+        yaw0_rad=1.0,
+    )  # fmt: skip
+    outage, stall = (45.0, 70.0), (52.5, 54.0)  # the stall ends 1 s before the speeding up
+    imu = [
+        s
+        for s in imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01)
+        if not stall[0] <= motion_time(s.t) < stall[1]
+    ]
+    fixes = [
+        f
+        for f in gnss_stream(drive, antenna_lever_arm_m=LEVER, latency_s=0.07)
+        if not outage[0] <= motion_time(f.t) < outage[1]
+    ]
+    log = tmp_path / "out.log"
+    core = run(log, engine, imu, fixes)
+    assert core.stats.engine_restarts == 1
+    sigmas = stated_sigma_deg(log)
+    times = [t for t, _ in sigmas]
+    checked = 0
+    for m in decode_log(log):
+        t = motion_time(m.t)
+        if m.id != "attitude" or not stall[1] <= t < outage[1] + 10.0:
+            continue
+        if m.fields.get("roll") is None or m.fields.get("pitch") is None:
+            continue
+        sigma = sigmas[bisect.bisect_right(times, m.t) - 1][1]
+        assert sigma is not None
+        c_bn = state_at(drive, t).c_bn[0]
+        true = (math.atan2(c_bn[2, 1], c_bn[2, 2]), -math.asin(c_bn[2, 0]))
+        for est, ref in zip((m.fields["roll"], m.fields["pitch"]), true, strict=True):
+            error_deg = abs(math.degrees(float(est) - ref))  # type: ignore[arg-type]
+            assert error_deg <= 0.1 + 3.0 * sigma, (t, error_deg, sigma)
+        checked += 1
+    assert checked > 100  # sent again once GNSS is back, at the latest

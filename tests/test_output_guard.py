@@ -56,6 +56,9 @@ class ScriptedEngine:
     def learned_state(self) -> LearnedState | None:
         return None
 
+    def moving_before(self) -> None:
+        return None  # scripted: no levelling to tell
+
     def solution(self) -> Solution:
         s = self.t - T0
         lat, lon, alt = LAT0, track_lon(self.t), 100.0

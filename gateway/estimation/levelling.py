@@ -30,6 +30,9 @@ class WindowMotion:
 
     vel_sigma_mps: float  # horizontal GNSS velocity 1-sigma per axis
     stationary_speed_mps: float  # below this speed the vehicle is at rest
+    #: the vehicle was last seen moving (an engine restarted mid-run): a window without GNSS
+    #: velocity is of unknown motion, not a parked vehicle's
+    moving_before: bool = False
     _first: tuple[float, float, float] | None = None  # t, vN, vE
     _last: tuple[float, float, float] | None = None
     _moving: bool = False
@@ -51,12 +54,12 @@ class WindowMotion:
 
     def tilt_sigma_rad(self) -> float:
         """1-sigma tilt error the window's motion causes: 0 at rest (or before any GNSS
-        velocity, when a gateway powers up with its parked vehicle), ``a / g`` plus the
-        velocity noise of the difference when moving, :data:`UNKNOWN_MOTION_TILT_RAD` when
-        moving without two velocities to difference."""
-        if not self._moving:
-            return 0.0
+        velocity, when a gateway powers up with its parked vehicle, unless ``moving_before``),
+        ``a / g`` plus the velocity noise of the difference when moving,
+        :data:`UNKNOWN_MOTION_TILT_RAD` when moving without two velocities to difference."""
         first, last = self._first, self._last
+        if not self._moving:
+            return UNKNOWN_MOTION_TILT_RAD if first is None and self.moving_before else 0.0
         assert first is not None and last is not None
         span_s = last[0] - first[0]
         if span_s <= 0.0:

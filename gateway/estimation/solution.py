@@ -212,3 +212,8 @@ class LearningEstimator(Estimator, Protocol):
     def learned_state(self) -> LearnedState | None:
         """The biases learned so far with their honest 1-sigma; None before the engine has
         any (not yet levelled and not seeded)."""
+
+    def moving_before(self) -> None:
+        """The engine takes over from one that saw the vehicle moving (a restart after an
+        IMU gap): without GNSS velocity (an outage) its levelling window is of unknown
+        motion, not a parked vehicle's."""

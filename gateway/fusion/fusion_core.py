@@ -326,9 +326,12 @@ class FusionCore:
         if self._make_engine is None:
             return
         learned = self.engine.learned_state()
+        moving = not self.engine.solution().stationary
         self.engine = self._make_engine()
         if learned is not None:
             self.engine.seed(learned)
+        if moving:
+            self.engine.moving_before()
         self.guard.forget_track()
         self.stats.engine_restarts += 1
         if last is not None:

@@ -273,7 +273,10 @@ class EkfEngine:
         if self._align_first_s is None:
             self._align_first_s = t
         fix = self._last_fix
-        still = fix is None or fix.sog_mps is None or fix.sog_mps < self.cfg.stationary_speed_mps
+        if fix is None:  # at power-up parked; after a restart as the old engine saw it
+            still = not self._win_motion.moving_before
+        else:
+            still = fix.sog_mps is None or fix.sog_mps < self.cfg.stationary_speed_mps
         quiet = (
             math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
             < self.cfg.align_quiet_rate_dps * DEG_TO_RAD
@@ -366,6 +369,11 @@ class EkfEngine:
             )
 
     # ======================================================================= warm start
+
+    def moving_before(self) -> None:
+        """The vehicle was moving when this engine took over: see the protocol (and no rest
+        window without a fix that says the vehicle stands)."""
+        self._win_motion.moving_before = True
 
     def seed(self, learned: LearnedState) -> bool:
         """Start from learned biases (a warm start, or the engine this one replaces after an

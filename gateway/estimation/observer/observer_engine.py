@@ -331,6 +331,10 @@ class ObserverEngine:
 
     # ======================================================================= warm start
 
+    def moving_before(self) -> None:
+        """The vehicle was moving when this engine took over: see the protocol."""
+        self._align_motion.moving_before = True
+
     def seed(self, learned: LearnedState) -> bool:
         """Start from learned biases (a warm start, or the engine this one replaces after an
         IMU gap): accepted until the observer begins to learn on its own (the learning
