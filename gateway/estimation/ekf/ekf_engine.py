@@ -51,9 +51,9 @@ from gateway.estimation.attitude import (
     dcm_from_rpy,
     dcm_mul,
     exp_so3,
+    exp_so3_2nd,
     heading_rate_from_mat9,
     roll_pitch_from_specific_force,
-    rotated_2nd,
     rpy_from_dcm,
     rpy_from_mat9,
     skew,
@@ -309,7 +309,9 @@ class EkfEngine:
         f0[1] += r[3] * f[0] + r[4] * f[1] + r[5] * f[2]
         f0[2] += r[6] * f[0] + r[7] * f[1] + r[8] * f[2]
         b = self._seed.bias_g_rps if self._seed is not None else (0.0, 0.0, 0.0)
-        self._win_rot9 = rotated_2nd(r, (w[0] - b[0]) * dt, (w[1] - b[1]) * dt, (w[2] - b[2]) * dt)
+        self._win_rot9 = dcm_mul(
+            r, exp_so3_2nd((w[0] - b[0]) * dt, (w[1] - b[1]) * dt, (w[2] - b[2]) * dt)
+        )
         marks = self._win_marks
         if not marks or t - marks[-1][0] >= ALIGN_MARK_S:
             marks.append((t, self._win_sum.copy(), self._win_n, f0.copy()))

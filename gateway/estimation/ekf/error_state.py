@@ -46,10 +46,10 @@ from drivers.units import GRAVITY_MPS2, wrap_pi
 from gateway.estimation.attitude import (
     Mat9,
     dcm_mul,
+    exp_so3_2nd,
     exp_so3_9,
     from_mat9,
     orthonormalise,
-    rotated_2nd,
     to_mat9,
 )
 from gateway.estimation.ekf.ekf_config import EkfTuning
@@ -260,7 +260,7 @@ class Strapdown:
             sc[6] + c20 * dt, sc[7] + c21 * dt, sc[8] + c22 * dt,
         ]  # fmt: skip
         self.sum_dt_s += dt
-        c = rotated_2nd(c, ax, ay, az)
+        c = dcm_mul(c, exp_so3_2nd(ax, ay, az))
         self._n += 1
         if self._n % ORTHO_EVERY == 0:
             c = to_mat9(orthonormalise(from_mat9(c)))

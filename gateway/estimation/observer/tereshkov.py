@@ -31,10 +31,10 @@ from drivers.units import GRAVITY_MPS2
 from gateway.estimation.attitude import (
     Mat9,
     dcm_mul,
+    exp_so3_2nd,
     exp_so3_9,
     from_mat9,
     orthonormalise,
-    rotated_2nd,
     to_mat9,
 )
 
@@ -87,7 +87,7 @@ class TereshkovObserver:
         fx = f_meas[0] - ba[0]
         fy = f_meas[1] - ba[1]
         fz = f_meas[2] - ba[2]
-        c = rotated_2nd(self._c, wx * dt, wy * dt, wz * dt)
+        c = dcm_mul(self._c, exp_so3_2nd(wx * dt, wy * dt, wz * dt))
         w_p = self._w_p_rps
         if w_p[0] or w_p[1] or w_p[2]:
             if self._exp_w_p is None or dt != self._exp_dt:
