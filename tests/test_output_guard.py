@@ -16,7 +16,7 @@ import numpy as np
 import pytest
 
 from drivers.logs.candump import CandumpWriter, read_candump
-from drivers.samples import FixQuality, GnssFix, ImuSample
+from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.solution import LearnedState, Mode, Solution
 from gateway.fusion.fusion_core import FusionCore
@@ -50,7 +50,7 @@ class ScriptedEngine:
     def gnss(self, fix: GnssFix) -> None:
         pass
 
-    def seed(self, learned: LearnedState) -> bool:
+    def seed(self, learned: LearnedState, f_rest_b_mps2: Float3 | None = None) -> bool:
         return False  # learns nothing, takes nothing
 
     def learned_state(self) -> LearnedState | None:

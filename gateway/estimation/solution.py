@@ -204,10 +204,12 @@ class LearningEstimator(Estimator, Protocol):
     """An estimator that learns its IMU's biases and can start from what it learned before
     (both engines; the comparison baselines of the demo need not)."""
 
-    def seed(self, learned: LearnedState) -> bool:
+    def seed(self, learned: LearnedState, f_rest_b_mps2: Float3 | None = None) -> bool:
         """Start from ``learned`` (biases and their 1-sigma) instead of the turn-on guess;
         False (nothing changed) if the engine has already begun to learn on its own, or
-        ``learned`` is not valid. Without a seed the engine behaves exactly as before."""
+        ``learned`` is not valid. Without a seed the engine behaves exactly as before.
+        ``f_rest_b_mps2``: the mean specific force (body, bias included) over the rest the
+        vehicle is standing in now, if any: the level with the seeded accelerometer bias."""
 
     def learned_state(self) -> LearnedState | None:
         """The biases learned so far with their honest 1-sigma; None before the engine has

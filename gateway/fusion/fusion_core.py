@@ -248,17 +248,17 @@ class FusionCore:
         """Seed the engine once a rest of the start can be compared with the stored one."""
         seed, rest = self._pending_seed, self.rest
         assert seed is not None and rest is not None
+        now = rest.current()
         if seed.rest is None:
             learned, why = None, "no rest stored with it to check it against"
         else:
-            now = rest.current()
             if now is None:
                 return
             learned, why = check_seed(seed.learned, seed.rest, now)
         self._pending_seed = None
         if learned is None:
             log.warning("learned state not used at t=%.3f: %s; cold start", t, why)
-        elif self.engine.seed(learned):
+        elif self.engine.seed(learned, None if now is None else now.f_b_mps2):
             self.warm_started = True
             log.info("warm start at t=%.3f, %s: %s", t, why, learned_text(learned))
         else:

@@ -377,12 +377,13 @@ class EkfEngine:
         window without a fix that says the vehicle stands)."""
         self._win_motion.moving_before = True
 
-    def seed(self, learned: LearnedState) -> bool:
+    def seed(self, learned: LearnedState, f_rest_b_mps2: Float3 | None = None) -> bool:
         """Start from learned biases (a warm start, or the engine this one replaces after an
         IMU gap): accepted until the filter starts (P exists once the heading is known).
 
         The INS takes the biases; the tilt levelled so far takes the accelerometer bias out
-        (:func:`levelling_correction`), and every later levelling too; a gyro mean at rest
+        (:func:`levelling_correction`), and every later levelling too (it levels again on
+        every quiet window until then, so ``f_rest_b_mps2`` adds nothing); a gyro mean at rest
         is combined with the seed by their variances. At heading alignment P's bias blocks
         start from the seed's sigmas (not the turn-on ones), and the tilt's share of the
         accelerometer bias error with them.

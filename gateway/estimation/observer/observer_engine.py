@@ -335,7 +335,7 @@ class ObserverEngine:
         """The vehicle was moving when this engine took over: see the protocol."""
         self._align_motion.moving_before = True
 
-    def seed(self, learned: LearnedState) -> bool:
+    def seed(self, learned: LearnedState, f_rest_b_mps2: Float3 | None = None) -> bool:
         """Start from learned biases (a warm start, or the engine this one replaces after an
         IMU gap): accepted until the observer begins to learn on its own (the learning
         hold-off after the first usable epochs), refused without bias estimation.
@@ -344,7 +344,13 @@ class ObserverEngine:
         KF, as an observation of its sigma); the learning exponents are set to what the
         sigma model needs to say the seed's sigmas, so the convergence flags and the roll/pitch
         sigma (NAVGW_STATUS bytes 5, 7) state the seed's accuracy, no better. A tilt already
-        levelled takes the accelerometer bias out (:func:`levelling_correction`).
+        levelled takes the accelerometer bias out (:func:`levelling_correction`); with the
+        mean specific force of the rest going on, it is levelled again on that instead.
+
+        Why again: the tilt loop has run on the turn-on gyro bias since the levelling, and
+        its PI response to the b_g tau it built up (0.1 deg/s for 3 s: 0.3 deg) outlasts the
+        seed by 20-40 s (steep-turns seed 12, parked at 11 deg of roll). At rest the tilt is
+        what the mean specific force less the seeded bias says, to the bias's sigma / g.
         """
         obs = self._observer
         started = self._g_learn > 0.0 or self._a_learn > 0.0 or (obs is not None and obs.learn)
@@ -354,6 +360,10 @@ class ObserverEngine:
         self._seed = learned
         if obs is not None:
             self._apply_seed(obs, learned)
+            if f_rest_b_mps2 is not None:
+                ba = learned.bias_a_mps2
+                f = (ba[0] - f_rest_b_mps2[0], ba[1] - f_rest_b_mps2[1], ba[2] - f_rest_b_mps2[2])
+                obs.rotate(levelling_correction(obs.c_bp9, f))
         return True
 
     def _apply_seed(self, obs: TereshkovObserver, s: LearnedState) -> None:
