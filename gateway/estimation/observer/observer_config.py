@@ -95,7 +95,10 @@ class ObserverConfig:
 
     # --- convergence flags and roll/pitch sigma ---
     gyro_bias_sigma0_dps: float = 0.3  # x/y gyro bias 1-sigma before learning
-    accel_bias_sigma0_mps2: float = 0.1  # x/y accel bias 1-sigma before learning
+    accel_bias_sigma0_mps2: float = 0.1  # x/y (and z) accel bias 1-sigma before learning
+    # z accel bias: the height loop's mean vertical correction, low-passed over this long
+    # (RTK fixed heights only; far below the loop's bandwidth, above the bias's wander)
+    accel_bias_z_tau_s: float = 60.0
     converged_time_constants: float = 3.0  # learning exponent for "converged" (e^-3 = 5 %)
     gyro_z_converged_dps: float = 0.02  # KF 1-sigma for "z gyro bias converged"
     imu_fault_s: float = 1.0  # invalid or saturated IMU data for this long: FAULT

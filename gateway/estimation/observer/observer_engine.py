@@ -82,16 +82,19 @@ LEVER_RATE_WINDOW_S = 0.1
 OUTPUT_RATE_WINDOW_S = 0.05
 #: History rows searched first for a time (:meth:`ObserverEngine._history_at`).
 RECENT_ROWS = 64
-#: Height loop time constant, s: GNSS gives no vertical velocity and the z accelerometer bias
-#: is not estimated, so the height (a double integrator) needs a firm loop whatever the fix's
-#: sigma: weighed by a float fix's 0.4 m, it drifted 60 m in a float spell.
+#: Height loop time constant, s: GNSS gives no vertical velocity, so the height (a double
+#: integrator) needs a firm loop whatever the fix's sigma: weighed by a float fix's 0.4 m, it
+#: drifted 60 m in a float spell.
 HEIGHT_LOOP_TAU_S = 0.3
 #: Body rate for the stationarity test: mean over this long before the epoch.
 STATIONARY_RATE_WINDOW_S = 0.2
 #: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
 GYRO_BIAS_FLOOR_RPS = 0.01 * DEG_TO_RAD
 ACCEL_BIAS_FLOOR_MPS2 = 0.01
-
+#: Floor of the z accelerometer bias sigma once learnt from RTK heights (the product's own
+#: extension, :meth:`ObserverEngine._learn_accel_bias_z`): 1.1-1.9 mg RMS measured after
+#: 240 s on steep-turns seeds 1-3 (docs/ACCURACY.md), with margin.
+ACCEL_BIAS_Z_FLOOR_MPS2 = 0.003
 # History row: a plain tuple (one per IMU sample, so no object overhead), read by these names:
 # time; integral of f_p N, E, D (m/s); platform heading psi; cumulative heading correction;
 # integral of the bias-corrected body rate x, y, z (rad).
@@ -174,6 +177,8 @@ class ObserverEngine:
         self._learn_ok_since_s: float | None = None
         self._g_learn = 0.0  # integral of dt / tau_g while learning
         self._a_learn = 0.0  # integral of w_z^2 / (omega_a (1 + (w_z tau)^2)) dt while learning
+        self._az_learn_s = 0.0  # time the z accelerometer bias has learnt on RTK heights
+        self._lever_vd_prev_mps: float | None = None  # (C (w x l_imu))_d at the last learning
         self._e_var_mps4 = 0.0  # running variance of one horizontal e component
         self._epoch_interval_s = 0.1  # last closed-loop GNSS interval
         self._t_last_epoch_s: float | None = None
@@ -381,23 +386,24 @@ class ObserverEngine:
         self._a_learn = seeded_exponent(
             cfg.accel_bias_sigma0_mps2, max(s.sigma_a_mps2[0], s.sigma_a_mps2[1])
         )
+        self._az_learn_s = cfg.accel_bias_z_tau_s * seeded_exponent(
+            cfg.accel_bias_sigma0_mps2, s.sigma_a_mps2[2]
+        )
 
     def learned_state(self) -> LearnedState | None:
         """Bias estimates with the sigmas the observer states for them: x/y from the learning
         exponents (floored at the paper's residual level), z gyro from the heading channel's
-        KF; the z accelerometer bias is not observed here, so it keeps the seed's value and
-        sigma (else 0 and the turn-on sigma)."""
+        KF, z accelerometer from the time its height loop has learnt it."""
         obs = self._observer
         if obs is None:
             return self._seed
         bg, ba = obs.bg_hat_rps, obs.ba_hat_mps2
         sg, sa = self._sigma_bg_rps(), self._sigma_ba_mps2()
-        sa_z = self._seed.sigma_a_mps2[2] if self._seed else self.cfg.accel_bias_sigma0_mps2
         return LearnedState(
             bias_g_rps=(float(bg[0]), float(bg[1]), float(bg[2])),
             sigma_g_rps=(sg, sg, self._heading.kf.sigma_rps),
             bias_a_mps2=(float(ba[0]), float(ba[1]), float(ba[2])),
-            sigma_a_mps2=(sa, sa, sa_z),
+            sigma_a_mps2=(sa, sa, self._sigma_baz_mps2()),
         )
 
     # ======================================================================= corrections
@@ -859,6 +865,41 @@ class ObserverEngine:
             v[i] += dv[i]
         if verdict != "reject":
             self._t_pos_epoch_s = t_e
+        learn = verdict == "use" and fix.quality == FixQuality.RTK_FIXED and interval_s > 0.0
+        self._learn_accel_bias_z(dv[2] if learn and v_ref_ne else None, interval_s, c_bn)
+
+    def _learn_accel_bias_z(self, dv_d_mps: float | None, interval_s: float, c_bn: Mat9) -> None:
+        """The z accelerometer bias from the height loop (the product's own extension: seed
+        000 has no vertical channel; docs/ACCURACY.md, "z accelerometer bias").
+
+        The loop's velocity corrections make up for the vertical acceleration the inertial
+        propagation gets wrong: their mean rate is the vertical part of the accelerometer
+        error, C_dz b_az (x/y errors project c_dx, c_dy: below 0.2 mg on a 10 deg slope with
+        the paper's 0.01 m/s^2). Low-passed over ``accel_bias_z_tau_s`` it is an integral
+        term of the height loop, which makes it third order, far slower than its 0.3 s.
+        Why: the z bias is what C f_b puts on the horizontal on a slope, b_az sin(tilt):
+        5 mg on a 10 deg side slope reads as 0.05 deg of roll, which no turn separates (it
+        turns with the slope, not the body). Only on RTK fixed heights (a float spell's
+        0.4 m would make it noise), never while the IMU is upset (``dv_d_mps`` None: not
+        this epoch).
+
+        The height is the reference point's, the specific force the IMU's: the loop also
+        makes up for the change of the IMU lever arm's vertical velocity (C (w x l_imu))_d,
+        which is added back. It telescopes over a turn, but inside one on a slope it is not
+        small: 6 mg of z bias error in a 6 m headland turn on 10 deg (steep-turns seed 1).
+        """
+        lever_vd, prev = self._lever_v_ned_mps[2], self._lever_vd_prev_mps
+        self._lever_vd_prev_mps = None if dv_d_mps is None else lever_vd
+        obs = self._observer
+        c_dz = c_bn[8]
+        if dv_d_mps is None or prev is None or obs is None or c_dz < 0.5:
+            return
+        if not self.cfg.estimate_biases or self._imu.upset:
+            return
+        tau = self.cfg.accel_bias_z_tau_s
+        dv = dv_d_mps + (lever_vd - prev)
+        obs.set_accel_bias_z(obs.ba_hat_mps2[2] - dv / (tau * c_dz))
+        self._az_learn_s += interval_s
 
     def _fix_sigma_m(self, fix: GnssFix) -> tuple[float, float, float]:
         """The fix's position 1-sigma NED (:func:`fix_position_sigma_m`); a quality without
@@ -1021,6 +1062,13 @@ class ObserverEngine:
         sigma0 = self.cfg.accel_bias_sigma0_mps2
         return max(sigma0 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2)
 
+    def _sigma_baz_mps2(self) -> float:
+        """z accelerometer bias 1-sigma: the turn-on sigma (or the seed's) decaying with
+        the low-pass of :meth:`_learn_accel_bias_z`, floored."""
+        sigma0 = self.cfg.accel_bias_sigma0_mps2
+        decay = math.exp(-self._az_learn_s / self.cfg.accel_bias_z_tau_s)
+        return max(sigma0 * decay, ACCEL_BIAS_Z_FLOOR_MPS2)
+
     def _sigma_tilt_rad(self, coasting_s: float) -> float:
         """Roll/pitch 1-sigma from the observer's physics (seed 000, eqs. 3, 8, 10).
 
@@ -1033,6 +1081,7 @@ class ObserverEngine:
         - residual gyro bias times tau (steady tilt b_g tau, eq. 10) and accelerometer bias
           over g (eq. 8), each decaying from its initial 1-sigma with the learning exponent
           down to the paper's residual level;
+        - the z accelerometer bias as C f_b puts it on the horizontal, b_az sin(tilt) / g;
         - open-loop drift b_g t while coasting;
         - the tilt error of levelling on a moving window (:mod:`gateway.estimation.levelling`)
           or of the last coast's drift, decaying with tau while the tilt loop is closed;
@@ -1043,11 +1092,15 @@ class ObserverEngine:
         sigma_bg = self._sigma_bg_rps()
         sigma_ba = self._sigma_ba_mps2()
         sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
+        obs = self._observer
+        c = obs.c_bp9 if obs is not None else (0.0,) * 9
+        sin2_tilt = c[2] * c[2] + c[5] * c[5]  # body z's horizontal part, squared
         return math.sqrt(
             self._arw_tilt_var
             + (sigma_v / (g * tau)) ** 2
             + (sigma_bg * tau) ** 2
             + (sigma_ba / g) ** 2
+            + sin2_tilt * (self._sigma_baz_mps2() / g) ** 2
             + (sigma_bg * coasting_s) ** 2
             + self._sigma_level_rad**2
             + self._mounting_var

@@ -166,6 +166,11 @@ class TereshkovObserver:
         self._bg_rps = [float(bg_rps[0]), float(bg_rps[1]), float(bg_rps[2])]
         self._ba_mps2 = [float(ba_mps2[0]), float(ba_mps2[1]), float(ba_mps2[2])]
 
+    def set_accel_bias_z(self, ba_z_mps2: float) -> None:
+        """The z accelerometer bias estimate (the engine's height loop), used from the next
+        sample on."""
+        self._ba_mps2[2] = ba_z_mps2
+
     def set_gyro_bias_z(self, bg_z_rps: float) -> None:
         """The heading channel's z-gyro bias estimate, used from the next sample on."""
         self._bg_rps[2] = bg_z_rps
