@@ -16,10 +16,10 @@ east) a two-state Kalman filter in plain floats:
 
 A new fix quality is a new receiver solution with an independent error: ``b`` restarts.
 
-Not the height: GNSS gives no vertical velocity and the z accelerometer bias is not
-estimated, so the height is a double integrator that only its loop holds. Weighed like this
-during a float spell (0.4 m vertical sigma, small gains) it drifted 60 m; the engine keeps
-its fixed critically damped height loop.
+Not the height: GNSS gives no vertical velocity, so the height is a double integrator that
+only its loop holds. Weighed like this during a float spell (0.4 m vertical sigma, small
+gains) it drifted 60 m; the engine keeps its fixed critically damped height loop (whose mean
+correction on RTK fixed heights is the z accelerometer bias it learns).
 """
 
 from __future__ import annotations
