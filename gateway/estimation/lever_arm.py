@@ -76,22 +76,58 @@ def velocity_at(
 
 
 def heading_from_antenna_course(
-    v_ant_ne_mps: Vec, c_bn: Mat9 | npt.ArrayLike, w_b_rps: Vec, lever_arm_ant_b: Vec
+    v_ant_ne_mps: Vec,
+    c_bn: Mat9 | npt.ArrayLike,
+    w_b_rps: Vec,
+    lever_arm_ant_b: Vec,
+    forward: bool = True,
 ) -> float:
-    """Heading, rad in [0, 2 pi), of a vehicle driving forward (along its body x axis, the
-    reference point without sideslip) whose antenna moves at ``v_ant_ne_mps`` (N, E) while
-    the body turns at ``w_b_rps``. Only the tilt of ``c_bn`` is used: its yaw may be anything
-    (the heading's first alignment).
+    """Heading, rad in [0, 2 pi), of a vehicle driving forward (or, not ``forward``,
+    reversing) along its body x axis (the reference point without sideslip) whose antenna
+    moves at ``v_ant_ne_mps`` (N, E) while the body turns at ``w_b_rps``. Only the tilt of
+    ``c_bn`` is used: its yaw may be anything (the heading's first alignment).
 
     The antenna's course is not the heading: a 3 m mast rocking 3 deg/s moves the antenna
     0.16 m/s sideways, 6 deg of course at 1.5 m/s. With ``c_bn`` turned to yaw 0 the antenna
     moves at k x_b + u, u = C (w x l), x_b without a lateral part: its course there is
-    asin(u_y / |v_ant|), and the heading the antenna's course less that.
+    asin(u_y / |v_ant|) (pi - that reversing, k < 0), and the heading the antenna's course
+    less that.
     """
     c = _mat9(c_bn)
-    un, ue, _ = lever_arm_velocity_ned(c, w_b_rps, lever_arm_ant_b)
-    yaw = math.atan2(c[3], c[0])
-    u_lateral = math.cos(yaw) * ue - math.sin(yaw) * un
+    _, u_lateral = _lateral_lever_velocity(c, w_b_rps, lever_arm_ant_b)
     vn, ve = v_ant_ne_mps[0], v_ant_ne_mps[1]
     ratio = max(-1.0, min(1.0, u_lateral / max(math.hypot(vn, ve), 1e-9)))
-    return (math.atan2(ve, vn) - math.asin(ratio)) % (2.0 * math.pi)
+    course_b = math.asin(ratio) if forward else math.pi - math.asin(ratio)
+    return (math.atan2(ve, vn) - course_b) % (2.0 * math.pi)
+
+
+def antenna_velocity_along_body_x(
+    speed_mps: float, c_bn: Mat9, w_b_rps: Vec, lever_arm_ant_b: Vec, forward: bool
+) -> tuple[float, float]:
+    """Horizontal antenna velocity (N, E of ``c_bn``'s own azimuth, m/s) of a vehicle driving
+    along its body x axis (forward or reversing) whose antenna moves at ``speed_mps``: the
+    same geometry as :func:`heading_from_antenna_course`, the other way round. The antenna's
+    lateral velocity is the lever arm's, u_y; the rest of its speed is along x. Needs only
+    the tilt of ``c_bn`` to be right: the result is in whatever azimuth its yaw has."""
+    yaw, u_lateral = _lateral_lever_velocity(c_bn, w_b_rps, lever_arm_ant_b)
+    along = math.sqrt(max(0.0, speed_mps * speed_mps - u_lateral * u_lateral))
+    if not forward:
+        along = -along
+    cy, sy = math.cos(yaw), math.sin(yaw)
+    return (along * cy - u_lateral * sy, along * sy + u_lateral * cy)
+
+
+def moving_forward(dv_n_mps: float, dv_e_mps: float, c_bn: Mat9) -> bool:
+    """Whether a velocity change since a rest (N, E in ``c_bn``'s own azimuth, m/s, the
+    inertial one: its yaw may be anything) is along body x rather than against it: a
+    wheeled vehicle leaving a rest drives forward, or reverses (the course alone cannot
+    tell, and a reversing start aligned the heading 180 deg off)."""
+    return dv_n_mps * c_bn[0] + dv_e_mps * c_bn[3] >= 0.0
+
+
+def _lateral_lever_velocity(c: Mat9, w_b_rps: Vec, lever_arm_b: Vec) -> tuple[float, float]:
+    """The azimuth of body x in ``c``'s frame, rad, and the lever arm's horizontal velocity
+    C (w x l) across it, m/s."""
+    un, ue, _ = lever_arm_velocity_ned(c, w_b_rps, lever_arm_b)
+    yaw = math.atan2(c[3], c[0])
+    return yaw, math.cos(yaw) * ue - math.sin(yaw) * un

@@ -98,6 +98,7 @@ from gateway.estimation.lever_arm import (
     heading_from_antenna_course,
     lever_arm_position_ned,
     lever_arm_velocity_ned,
+    moving_forward,
 )
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
@@ -214,6 +215,7 @@ class EkfEngine:
         self._seed: LearnedState | None = None
         self._seed_var_g = np.zeros(3)
         self._rest_mean_g_rps: list[float] = []  # mean rate of the last window at rest
+        self._t_rest_epoch_s: float | None = None  # last epoch at rest before alignment
 
     # ======================================================================== prediction
 
@@ -462,6 +464,8 @@ class EkfEngine:
                 self._log.warning(t_e, late_epoch_text(t_e, self._hist.oldest_s()), "late")
             return
         if self._p is None:
+            if fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps:
+                self._t_rest_epoch_s = t_e
             self._align_heading(fix, t_e, row)
             return
         if self._hist.spacing(t_e) > MAX_IMU_STEP_S:
@@ -588,7 +592,10 @@ class EkfEngine:
 
     def _align_heading(self, fix: GnssFix, t_e: float, row: Array) -> None:
         """First heading from HDT, or from the antenna's course at ``align_min_speed_mps``
-        (forward; its lever-arm velocity taken out, :func:`heading_from_antenna_course`).
+        (its lever-arm velocity taken out, :func:`heading_from_antenna_course`), forward
+        unless the INS's velocity change since the last epoch at rest points backwards along
+        body x (taken as forward, a start reversing out of a shed aligned 180 deg off and the
+        filter then read the deceleration as tilt: pitch 5.7 deg off, NAVIGATING).
 
         The INS yaw at ``t_e`` is turned onto the reference (history too, keeping the gyro
         motion since), position and velocity are set from the fix, and P starts: position
@@ -604,7 +611,9 @@ class EkfEngine:
             target, sig_yaw = fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD
         elif vel is not None and math.hypot(*vel) >= self.cfg.align_min_speed_mps:
             w_e = self._lever_rate(t_e)[0]
-            target = heading_from_antenna_course(vel, row[ROW_C], w_e, self._l_ant_b)
+            target = heading_from_antenna_course(
+                vel, row[ROW_C], w_e, self._l_ant_b, self._forward_since_rest(row)
+            )
             sig_yaw = self.cfg.align_yaw_sigma_deg * DEG_TO_RAD
         else:
             return
@@ -645,6 +654,16 @@ class EkfEngine:
         self._set_from_fix(fix, t_e, row_aligned)
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
+
+    def _forward_since_rest(self, row: Array) -> bool:
+        """Driving forward at ``row``: its INS velocity against that of the last epoch at
+        rest (:func:`moving_forward`); forward if that rest is not in the history."""
+        assert self._hist is not None
+        rest = None if self._t_rest_epoch_s is None else self._hist.at(self._t_rest_epoch_s)
+        if rest is None:
+            return True
+        dv = row[ROW_V] - rest[ROW_V]
+        return moving_forward(float(dv[0]), float(dv[1]), to_mat9(row[ROW_C].reshape(3, 3)))
 
     def _levelled_gyro_bias_sigma_rps(self) -> float:
         """Gyro bias 1-sigma before the filter runs: the seed's (x/y, with the rest mean's),

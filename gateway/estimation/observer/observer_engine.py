@@ -49,7 +49,9 @@ from gateway.estimation.gnss_error import fix_position_sigma_m, fix_velocity_sig
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
+    antenna_velocity_along_body_x,
     heading_from_antenna_course,
+    moving_forward,
     reference_from_antenna,
     velocity_at,
 )
@@ -86,6 +88,10 @@ RECENT_ROWS = 64
 #: integrator) needs a firm loop whatever the fix's sigma: weighed by a float fix's 0.4 m, it
 #: drifted 60 m in a float spell.
 HEIGHT_LOOP_TAU_S = 0.3
+#: Before the heading is known, how long after a rest the tilt loop runs on the speed along
+#: body x, s (:meth:`ObserverEngine._velocity_along_body_x`): the direction of travel is
+#: the one taken when leaving the rest, and a wheeled vehicle reverses only through a stop.
+BODY_X_LOOP_S = 5.0
 #: Body rate for the stationarity test: mean over this long before the epoch.
 STATIONARY_RATE_WINDOW_S = 0.2
 #: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
@@ -170,6 +176,8 @@ class ObserverEngine:
         self._prev_epoch: tuple[float, float, float, _Row] | None = None  # t, vN, vE at IMU
         self._stationary = False  # at rest and not turning (status bit, zero-rate update)
         self._at_rest = False  # reference point not moving (turning on the spot allowed)
+        self._rest_row: _Row | None = None  # history row of the last epoch at rest
+        self._forward: bool | None = None  # direction of travel since that rest
         self._zero_rate_start: _Row | None = None  # history row where the rest window began
         self._coasting = False  # GNSS velocity timed out: platform open loop
         self._coast_budget: CoastBudget | None = None  # error sources as the outage began
@@ -459,7 +467,12 @@ class ObserverEngine:
         rate_limit = self.cfg.stationary_rate_dps * DEG_TO_RAD + 3.0 * self._sigma_bg_rps()
         self._stationary = self._at_rest and math.hypot(*w_still) < rate_limit
         self._hold_control(t_e)
-        glitch = self._correct_tilt(t_e, v_imu[0], v_imu[1], row)
+        v_tilt, closed = (v_imu[0], v_imu[1]), self._heading_aligned or self._at_rest
+        if not self._heading_aligned:
+            along_x = self._velocity_along_body_x(fix, t_e, c_e, w_lever, row)
+            if along_x is not None:
+                v_tilt, closed = along_x, True
+        glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed)
         # Learning goes on at rest: the tilt loop is closed there too (v = 0 is the best
         # velocity reference there is), the control rate still equals the x/y gyro bias
         # (eq. 15), and eq. (12) moves no accelerometer bias without a yaw rate. Freezing it
@@ -479,7 +492,9 @@ class ObserverEngine:
         cog_ref = (
             math.atan2(v_ref[1], v_ref[0]) % (2.0 * math.pi)
             if self._heading_aligned
-            else heading_from_antenna_course(v_ant, c_e, w_lever, self._l_ant_f)
+            else heading_from_antenna_course(
+                v_ant, c_e, w_lever, self._l_ant_f, forward=self._forward is not False
+            )
         )
         yaw_rate = c_bn[6] * w_still[0] + c_bn[7] * w_still[1] + c_bn[8] * w_still[2]
         aligned = self._heading_aligned
@@ -492,6 +507,7 @@ class ObserverEngine:
             v_ref = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, (0.0, 0.0, 0.0))
             v_imu = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, self._l_imu_f)
             self._nav_valid = False
+            self._prev_epoch = None  # its velocity and f_p integral were in the old azimuth
         self._lever_v_ned_mps = (v_imu[0] - v_ref[0], v_imu[1] - v_ref[1], v_imu[2] - v_ref[2])
         self._correct_position(fix, t_e, row, c_e, (v_ref[0], v_ref[1]))
 
@@ -611,14 +627,48 @@ class ObserverEngine:
             (row[_WI_Z] - row0[_WI_Z]) / span,
         )
 
-    def _correct_tilt(self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row) -> bool:
+    def _velocity_along_body_x(
+        self, fix: GnssFix, t_e: float, c_e: Mat9, w_lever: Float3, row: _Row
+    ) -> tuple[float, float] | None:
+        """Before the heading is known: the IMU's horizontal velocity in the platform's own
+        azimuth, from the GNSS speed along body x (a wheeled vehicle does not slip sideways),
+        for up to :data:`BODY_X_LOOP_S` after a rest; None at rest, or when not known.
+
+        Why: at rest the tilt loop takes v = 0 and closes in any azimuth; leaving it, the
+        loop opened until the course gave the heading (1 m/s). The rest epochs of the pull
+        away (GNSS speed still under ``stationary_speed_mps``, the vehicle already rolling)
+        had their acceleration read as tilt, and the epoch that would have taken it back was
+        one of the open ones: 0.27 deg of pitch for 3 s at every start on a slope
+        (steep-turns seed 12). Closed on the speed along x, the velocity differences telescope
+        through the pull-away as they do once the heading is known. Forward or reversing is
+        what the inertial velocity change along x since the rest says at the first epoch
+        after it (0.1 m/s then, against a tilt error's g theta t of a few mm/s).
+        """
+        if self._at_rest:
+            self._rest_row, self._forward = row, None
+            return None
+        rest = self._rest_row
+        if rest is None or fix.sog_mps is None or t_e - rest[_T] > BODY_X_LOOP_S:
+            return None
+        if self._forward is None:
+            self._forward = moving_forward(row[_SF_N] - rest[_SF_N], row[_SF_E] - rest[_SF_E], c_e)
+        vn, ve = antenna_velocity_along_body_x(
+            fix.sog_mps, c_e, w_lever, self._l_ant_f, self._forward
+        )
+        v_imu = velocity_at((vn, ve, 0.0), c_e, w_lever, self._l_ant_f, self._l_imu_f)
+        return v_imu[0], v_imu[1]
+
+    def _correct_tilt(
+        self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row, closed: bool
+    ) -> bool:
         """Eq. (3) over exactly the GNSS interval; returns True for a glitch.
 
         e = (v_k - v_{k-1}) / T - mean f_p over [t_{k-1}, t_k], horizontal (the -g term has no
         horizontal part). The velocity is moved from the antenna to the IMU with both lever
         arms first, so that it describes the point whose specific force is measured. Before the
         heading is known the horizontal f_p is in an arbitrary azimuth, so the loop is closed
-        only while at rest (v = 0 in any azimuth). A velocity mismatch |e| T beyond
+        (``closed``) only while at rest (v = 0 in any azimuth) or on the speed along body x
+        in the platform's azimuth (:meth:`_velocity_along_body_x`). A velocity mismatch |e| T beyond
         :meth:`_glitch_dv_mps` is a glitch: the loop stays open for the interval (no attitude
         kick) and learning is gated (hold-off after it). Glitches that last
         ``glitch_persist_s`` are the platform's error, not the GNSS's (a velocity step cancels
@@ -662,7 +712,7 @@ class ObserverEngine:
             # rejected this long: the platform is off, not the GNSS; correct, clipped
             e_n, e_e = e_n * gate_mps / mismatch_mps, e_e * gate_mps / mismatch_mps
         self._prev_epoch = current
-        if not self._heading_aligned and not self._at_rest:
+        if not closed:
             self._set_tilt_open()
             return False
         obs.correct_tilt(e_n * scale, e_e * scale)
@@ -755,9 +805,11 @@ class ObserverEngine:
     ) -> None:
         """First heading alignment, then the heading channel (ALGORITHMS.md 2).
 
-        Alignment takes HDT, or the first reference-point course at ``align_min_speed_mps``
-        (assumed forward: a farm vehicle starts by driving forward). The heading channel's
-        bias KF learns under the same gates as the observer.
+        Alignment takes HDT, or the first reference-point course at ``align_min_speed_mps``,
+        forward unless the vehicle left its last rest reversing (:meth:`_velocity_along_body_x`:
+        taken as forward, backing out of a shed aligned 180 deg off and sent that heading,
+        NAVIGATING, for as long as it reversed). The heading channel's bias KF learns under
+        the same gates as the observer.
         """
         obs = self._observer
         assert obs is not None
@@ -772,6 +824,7 @@ class ObserverEngine:
             obs.rotate_about_vertical(wrap_pi(target - row[_PSI]))
             self._heading_aligned = True
             self._heading.aligned(sigma)
+            self._heading.reversing = self._forward is False and hdt_rad is None
             return
         ref = self._heading.select_reference(
             t_e, row[_PSI], cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
