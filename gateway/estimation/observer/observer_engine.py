@@ -101,6 +101,7 @@ ACCEL_BIAS_FLOOR_MPS2 = 0.01
 #: extension, :meth:`ObserverEngine._learn_accel_bias_z`): 1.1-1.9 mg RMS measured after
 #: 240 s on steep-turns seeds 1-3 (docs/ACCURACY.md), with margin.
 ACCEL_BIAS_Z_FLOOR_MPS2 = 0.003
+
 # History row: a plain tuple (one per IMU sample, so no object overhead), read by these names:
 # time; integral of f_p N, E, D (m/s); platform heading psi; cumulative heading correction;
 # integral of the bias-corrected body rate x, y, z (rad).
@@ -374,9 +375,9 @@ class ObserverEngine:
         if obs is not None:
             self._apply_seed(obs, learned)
             if f_rest_b_mps2 is not None:
-                ba = learned.bias_a_mps2
-                f = (ba[0] - f_rest_b_mps2[0], ba[1] - f_rest_b_mps2[1], ba[2] - f_rest_b_mps2[2])
-                obs.rotate(levelling_correction(obs.c_bp9, f))
+                ba, f = learned.bias_a_mps2, f_rest_b_mps2
+                minus_f_true = (ba[0] - f[0], ba[1] - f[1], ba[2] - f[2])  # -(f - b_a)
+                obs.rotate(levelling_correction(obs.c_bp9, minus_f_true))
         return True
 
     def _apply_seed(self, obs: TereshkovObserver, s: LearnedState) -> None:
@@ -638,8 +639,8 @@ class ObserverEngine:
         loop opened until the course gave the heading (1 m/s). The rest epochs of the pull
         away (GNSS speed still under ``stationary_speed_mps``, the vehicle already rolling)
         had their acceleration read as tilt, and the epoch that would have taken it back was
-        one of the open ones: 0.27 deg of pitch for 3 s at every start on a slope
-        (steep-turns seed 12). Closed on the speed along x, the velocity differences telescope
+        one of the open ones: 0.27 deg of pitch for 3 s as the warm start of steep-turns
+        seed 12 drove off. Closed on the speed along x, the velocity differences telescope
         through the pull-away as they do once the heading is known. Forward or reversing is
         what the inertial velocity change along x since the rest says at the first epoch
         after it (0.1 m/s then, against a tilt error's g theta t of a few mm/s).
@@ -938,8 +939,10 @@ class ObserverEngine:
 
         The height is the reference point's, the specific force the IMU's: the loop also
         makes up for the change of the IMU lever arm's vertical velocity (C (w x l_imu))_d,
-        which is added back. It telescopes over a turn, but inside one on a slope it is not
-        small: 6 mg of z bias error in a 6 m headland turn on 10 deg (steep-turns seed 1).
+        which is added back so that the mean is the bias's alone. It telescopes over a turn
+        (on steep-turns seeds 1-3 it moved the z bias error by under 0.2 mg); what swings the
+        estimate in turns and three-point turns is the loop's own velocity error, up to
+        0.1 m/s over a crest, divided by ``accel_bias_z_tau_s`` (docs/ACCURACY.md).
         """
         lever_vd, prev = self._lever_v_ned_mps[2], self._lever_vd_prev_mps
         self._lever_vd_prev_mps = None if dv_d_mps is None else lever_vd
