@@ -204,6 +204,23 @@ def test_travel_direction_tells_reversing_from_the_gyro_heading() -> None:
     assert way.course(0.7) is True
 
 
+@pytest.mark.parametrize("accel_mps2", [0.4, -0.4])
+def test_the_first_drive_out_of_a_rest_goes_the_way_the_imu_says(accel_mps2: float) -> None:
+    """Parked nose down on a slope (gravity on x), then pulling away or backing out at
+    0.4 m/s^2: the first course at speed is the heading, or the heading's reverse (taken
+    as forward, a start backing out of a shed labelled every later drive the wrong way)."""
+    way = TravelDirection()
+    f_rest = -9.80665 * math.sin(math.radians(3.0))
+    for k in range(50):  # 5 s at rest, the vibration's noise on the interval means
+        way.still(f_rest + 0.05 * math.sin(1.7 * k))
+    speed = 0.0
+    while speed < 1.0:
+        speed += abs(accel_mps2) * 0.1
+        way.rolling(f_rest + accel_mps2, 0.1, speed)
+    assert way.course(0.5) is (accel_mps2 > 0.0)
+    assert way.heading_rad == pytest.approx(0.5 if accel_mps2 > 0.0 else 0.5 + math.pi)
+
+
 def test_imu_intervals_cut_at_epochs_and_drop_gaps() -> None:
     dt = 1.0 / 128.0  # exact in binary: the cuts fall on sample times
     intervals = ImuIntervals()

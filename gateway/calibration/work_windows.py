@@ -25,7 +25,7 @@ from itertools import pairwise
 from drivers.samples import FixQuality, GnssFix
 from drivers.units import GRAVITY_MPS2
 from gateway.calibration.imu_intervals import ImuInterval, Vec3
-from gateway.calibration.travel_direction import TravelDirection
+from gateway.calibration.travel_direction import STILL_SPEED_MPS, TravelDirection
 
 #: Epochs each side of an epoch whose heights give its slope (0.5 s at 10 Hz).
 SLOPE_SPAN = 5
@@ -100,6 +100,10 @@ class WorkWindows:
             interval = None
         else:
             self.direction.turn(interval.w_rps[2], interval.duration_s)
+            if fix.sog_mps is not None and fix.sog_mps < STILL_SPEED_MPS:
+                self.direction.still(interval.f_mps2[0])
+            elif fix.sog_mps is not None:
+                self.direction.rolling(interval.f_mps2[0], interval.duration_s, fix.sog_mps)
         usable = (
             int(fix.quality) in self.fix_qualities
             and fix.sog_mps is not None
