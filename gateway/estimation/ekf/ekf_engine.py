@@ -134,6 +134,9 @@ LEVER_RATE_HALF_WIDTH_S = 0.05
 #: The non-holonomic constraint is due ``nhc_interval_s`` after the last to within this, s
 #: (a 10 Hz receiver's epochs arrive 0.1 s apart give or take the serial line's jitter).
 NHC_SLACK_S = 0.01
+#: The stated roll/pitch 1-sigma is at least the filter's own latest horizontal tilt
+#: correction, decaying over this long, s (:meth:`EkfEngine._inject`).
+TILT_STEP_TAU_S = 1.0
 
 
 @dataclass
@@ -216,6 +219,7 @@ class EkfEngine:
         self._seed_var_g = np.zeros(3)
         self._rest_mean_g_rps: list[float] = []  # mean rate of the last window at rest
         self._t_rest_epoch_s: float | None = None  # last epoch at rest before alignment
+        self._tilt_step: tuple[float, float] = (0.0, 0.0)  # latest tilt correction rad, at s
 
     # ======================================================================== prediction
 
@@ -589,6 +593,21 @@ class EkfEngine:
         rot = self._ins.inject(dx, max(0.0, self._t_s - t_e))
         self._hist.shift(dx[POS], dx[VEL], rot, t_e)
         self._fix_err_ned_m += dx[FIX]
+        step = math.hypot(dx[ATT.start], dx[ATT.start + 1])
+        if step > self._tilt_step_rad(self._t_s):
+            self._tilt_step = (step, self._t_s)
+
+    def _tilt_step_rad(self, t: float) -> float:
+        """The latest horizontal tilt correction, decayed over :data:`TILT_STEP_TAU_S`: a
+        floor of the stated roll/pitch sigma. A filter that has just moved its tilt by x was
+        about x off a moment ago, whatever P says now. After a restart levelled in a turn
+        (tilt sigma 4 deg), the first velocity epoch moved roll by 5 deg, overshooting to
+        1.7 deg off, while P's sigma fell to 0.41 (slope-start seed 73, an IMU stall at
+        40 s): the linear update does not hold for degrees of tilt in a 19 deg/s turn, and
+        P does not know it. Converged, the corrections are hundredths of a degree, under
+        P's own sigma."""
+        step, t_step = self._tilt_step
+        return step * math.exp(-(t - t_step) / TILT_STEP_TAU_S) if step else 0.0
 
     def _align_heading(self, fix: GnssFix, t_e: float, row: Array) -> None:
         """First heading from HDT, or from the antenna's course at ``align_min_speed_mps``
@@ -688,7 +707,8 @@ class EkfEngine:
         if p is not None:
             a, b, d = p.item(6, 6), p.item(6, 7), p.item(7, 7)
             worse = 0.5 * (a + d) + math.sqrt(0.25 * (a - d) ** 2 + b * b)  # larger eigenvalue
-            return math.sqrt(worse + mounting_var)
+            step = self._tilt_step_rad(self._t_s) if self._t_s is not None else 0.0
+            return math.sqrt(max(worse, step * step) + mounting_var)
         if self._ins is None or tun is None or self._t_s is None:
             return None
         sig_ba = tun.sigma_bias_a0_mps2
