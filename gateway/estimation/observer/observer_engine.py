@@ -51,14 +51,15 @@ from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
     antenna_velocity_along_body_x,
     heading_from_antenna_course,
-    moving_forward,
     reference_from_antenna,
     velocity_at,
+    velocity_change_along_x,
 )
 from gateway.estimation.observer.coast_budget import CoastBudget
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.position_channel import PositionChannel
+from gateway.estimation.observer.rest_window import RestWindow
 from gateway.estimation.observer.tereshkov import TereshkovObserver
 from gateway.estimation.solution import (
     LearnedState,
@@ -92,6 +93,12 @@ HEIGHT_LOOP_TAU_S = 0.3
 #: body x, s (:meth:`ObserverEngine._velocity_along_body_x`): the direction of travel is
 #: the one taken when leaving the rest, and a wheeled vehicle reverses only through a stop.
 BODY_X_LOOP_S = 5.0
+#: Forward or reversing after a rest, before the heading is known: the inertial velocity
+#: change along body x, once it exceeds this many sigma of what the tilt left by a levelling
+#: on a moving window and this floor (m/s: the engine vibration integrated over the first
+#: epochs) put into it (:meth:`ObserverEngine._velocity_along_body_x`).
+DIRECTION_SIGMAS = 3.0
+DIRECTION_DV_FLOOR_MPS = 0.02
 #: Body rate for the stationarity test: mean over this long before the epoch.
 STATIONARY_RATE_WINDOW_S = 0.2
 #: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
@@ -165,7 +172,9 @@ class ObserverEngine:
         self._l_imu_f = tuple(float(x) for x in cfg.imu_lever_arm_m)
         # the constant terms of the roll/pitch variance (_sigma_tilt_rad)
         arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
+        self._gyro_arw = arw  # rad/sqrt(s)
         self._arw_tilt_var = arw**2 * cfg.tau_s / 2.0
+        self._rest = RestWindow(arw)  # the specific force of a stop (_level_at_rest)
         self._mounting_var = (cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         self._v_imu_ned_mps = [0.0, 0.0, 0.0]  # IMU-point velocity while coasting
         # IMU-point minus reference-point velocity, C (w_b x l_imu), at the last velocity
@@ -179,7 +188,10 @@ class ObserverEngine:
         self._at_rest = False  # reference point not moving (turning on the spot allowed)
         self._rest_row: _Row | None = None  # history row of the last epoch at rest
         self._forward: bool | None = None  # direction of travel since that rest
+        self._forward_known = False  # ... beyond what a tilt error could make of it
         self._zero_rate_start: _Row | None = None  # history row where the rest window began
+        self._prev_rest_row: _Row | None = None  # newest row when last levelled at rest
+        self._rest_last_row: _Row | None = None  # newest row at the last epoch at rest
         self._coasting = False  # GNSS velocity timed out: platform open loop
         self._coast_budget: CoastBudget | None = None  # error sources as the outage began
         # learning gates and convergence bookkeeping
@@ -372,6 +384,7 @@ class ObserverEngine:
         if started or not self.cfg.estimate_biases or not learned.is_valid():
             return False
         self._seed = learned
+        self._end_rest()
         if obs is not None:
             self._apply_seed(obs, learned)
             if f_rest_b_mps2 is not None:
@@ -474,6 +487,11 @@ class ObserverEngine:
             if along_x is not None:
                 v_tilt, closed = along_x, True
         glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed)
+        if not closed:
+            # moving before the heading and the direction of travel are known: the velocity is
+            # in the receiver's azimuth, not the platform's, so no base for eq. (3)'s next
+            # difference either (0.18 deg of tilt once the direction became known)
+            self._prev_epoch = None
         # Learning goes on at rest: the tilt loop is closed there too (v = 0 is the best
         # velocity reference there is), the control rate still equals the x/y gyro bias
         # (eq. 15), and eq. (12) moves no accelerometer bias without a yaw rate. Freezing it
@@ -488,6 +506,7 @@ class ObserverEngine:
             ),
         )
         self._zero_rate_update(t_e, row)
+        self._level_at_rest(t_e, (v_ref[0], v_ref[1]))
         self._imu.upset = False
         # (before the heading is found C's yaw is arbitrary, and so was v_ref's lever-arm part)
         cog_ref = (
@@ -564,6 +583,80 @@ class ObserverEngine:
         assert self._observer is not None
         self._observer.set_gyro_bias_z(self._heading.bg_z_rps)
         self._zero_rate_start = row
+
+    def _level_at_rest(self, t_e: float, v_ref_ne_mps: tuple[float, float]) -> None:
+        """Standing still, the tilt is the stop's mean specific force less the accelerometer
+        bias (:mod:`gateway.estimation.observer.rest_window`): once that mean is better than
+        the tilt loop's (its own noise, the gyro's ARW through tau, 0.05 deg, 3 s of samples
+        with this engine vibration; sooner where a levelling on a moving window left more in
+        it), the platform is levelled on it every epoch and the loop,
+        which would add the ARW and the x/y gyro bias error times tau (eq. 10), stays open.
+        The x/y gyro biases are learnt from what the control rate converges to at rest
+        (eq. 15), the mean bias-corrected body rate, directly (:meth:`_observe_gyro_bias_at_rest`).
+        The product's own extension of seed 000; the stated sigma keeps the loop's terms.
+        """
+        obs = self._observer
+        assert obs is not None and self._t_s is not None
+        if not (self._stationary and self.cfg.estimate_biases) or self._imu.upset:
+            self._end_rest()
+            return
+        row, last = self._hist[-1], self._rest_last_row
+        self._rest_last_row = row
+        f_b: Float3 | None = None
+        if last is not None and row[_T] > last[_T]:
+            # the mean f_b - b_a since the last epoch: C^T of the mean f_p (C holds still at
+            # rest: the levelling turns it at the epochs, between which the chunks lie)
+            d, c = row[_T] - last[_T], obs.c_bp9
+            sn, se, sd = ((row[i] - last[i]) / d for i in (_SF_N, _SF_E, _SF_D))
+            f_b = (
+                c[0] * sn + c[3] * se + c[6] * sd,
+                c[1] * sn + c[4] * se + c[7] * sd,
+                c[2] * sn + c[5] * se + c[8] * sd,
+            )
+        level = self._rest.epoch(t_e, self._t_s, f_b, (row[_WI_X], row[_WI_Y]), v_ref_ne_mps)
+        if (
+            level is None
+            or level.sigma_tilt_rad**2 >= self._arw_tilt_var + self._sigma_level_rad**2
+        ):
+            self._prev_rest_row = None
+            return
+        f = level.f_b_mps2  # bias-corrected: level on -f
+        obs.rotate(levelling_correction(obs.c_bp9, (-f[0], -f[1], -f[2])))
+        obs.open_tilt_loop()
+        # what a levelling on a moving window or a coast left in the tilt is gone with it
+        self._sigma_level_rad = min(self._sigma_level_rad, level.sigma_tilt_rad)
+        # eq. (3)'s differences start again after the stop: the corrections they would have
+        # made here are not made, so the next ones must not telescope onto them (the first
+        # 0.2 s of a pull-away are still "at rest", and before the heading is known their
+        # velocity is in another azimuth than the body-x speed that follows: 0.12 deg)
+        self._prev_epoch = None
+        prev = self._prev_rest_row
+        if prev is not None and row[_T] > prev[_T] and obs.learn:
+            d = row[_T] - prev[_T]
+            w_res = ((row[_WI_X] - prev[_WI_X]) / d, (row[_WI_Y] - prev[_WI_Y]) / d)
+            self._observe_gyro_bias_at_rest(w_res, d)
+        self._prev_rest_row = row
+
+    def _observe_gyro_bias_at_rest(self, w_res_rps: tuple[float, float], d_s: float) -> None:
+        """At rest the mean bias-corrected body rate x/y over ``d_s`` is the gyro bias error
+        plus the mean of the ARW (variance ARW^2 / d): a scalar Kalman update of each axis
+        from the sigma the engine states, which then states the result (a zero-rate update,
+        as the heading channel's for z). A cold 0.1 deg/s is 0.007 deg/s after a 20 s stop,
+        where eq. (11)'s loop (tau_g 40 s) would have left 60 % of it."""
+        obs = self._observer
+        assert obs is not None
+        p = self._sigma_bg_rps() ** 2
+        k = p / (p + self._gyro_arw**2 / d_s)
+        bg = obs.bg_hat_rps
+        obs.set_biases((bg[0] + k * w_res_rps[0], bg[1] + k * w_res_rps[1], bg[2]), obs.ba_hat_mps2)
+        sigma0 = self.cfg.gyro_bias_sigma0_dps * DEG_TO_RAD
+        self._g_learn = max(self._g_learn, seeded_exponent(sigma0, math.sqrt((1.0 - k) * p)))
+
+    def _end_rest(self) -> None:
+        """The stop is over (or its means are, as the biases they were corrected with were
+        replaced by a seed)."""
+        self._rest.stop()
+        self._prev_rest_row = self._rest_last_row = None
 
     def _velocity_ne(self, fix: GnssFix) -> tuple[float, float] | None:
         """Horizontal antenna velocity; a receiver that has never moved gives SOG only.
@@ -642,19 +735,40 @@ class ObserverEngine:
         one of the open ones: 0.27 deg of pitch for 3 s as the warm start of steep-turns
         seed 12 drove off. Closed on the speed along x, the velocity differences telescope
         through the pull-away as they do once the heading is known. Forward or reversing is
-        what the inertial velocity change along x since the rest says at the first epoch
-        after it (0.1 m/s then, against a tilt error's g theta t of a few mm/s).
+        what the inertial velocity change along x since the rest says, once it is beyond
+        :data:`DIRECTION_SIGMAS` of what the tilt left by a levelling on a moving window puts
+        into it (0.1 m/s at the first epoch, against a few mm/s after a start at rest, but
+        0.08 m/s after a restart levelled while braking); until then the loop stays open,
+        and the heading's alignment takes the direction the change has at that epoch (over
+        the whole pull-away then, as the EKF does).
         """
         if self._at_rest:
-            self._rest_row, self._forward = row, None
+            self._rest_row, self._forward, self._forward_known = row, None, False
             return None
         rest = self._rest_row
-        if rest is None or fix.sog_mps is None or t_e - rest[_T] > BODY_X_LOOP_S:
+        if rest is None or fix.sog_mps is None:
             return None
-        if self._forward is None:
-            self._forward = moving_forward(row[_SF_N] - rest[_SF_N], row[_SF_E] - rest[_SF_E], c_e)
+        since_s = t_e - rest[_T]
+        if not self._forward_known:
+            # the change so far; the heading's alignment takes the latest
+            dn, de = row[_SF_N] - rest[_SF_N], row[_SF_E] - rest[_SF_E]
+            dv_x = velocity_change_along_x(dn, de, c_e)
+            self._forward = dv_x >= 0.0
+            # At rest the tilt loop has made the mean horizontal f_p zero, whatever the
+            # accelerometer bias; what it has not yet taken out of a levelling on a moving
+            # window adds g theta t to the change (a restart levelled while braking, 1.4 deg
+            # of pitch left after 3 s at rest: 0.08 m/s in the 0.3 s to the first epoch, with
+            # 0.1 m/s of true speed; decided there, the heading aligned 180 deg off for good,
+            # and the tilt went 13 deg off: steep-turns seed 94 with a stall at 160 s)
+            sigma_theta = math.sqrt(self._sigma_level_rad**2 + self._arw_tilt_var)
+            sigma_dv = GRAVITY_MPS2 * sigma_theta * since_s + DIRECTION_DV_FLOOR_MPS
+            self._forward_known = abs(dv_x) >= DIRECTION_SIGMAS * sigma_dv
+            if not self._forward_known:
+                return None
+        if since_s > BODY_X_LOOP_S:
+            return None
         vn, ve = antenna_velocity_along_body_x(
-            fix.sog_mps, c_e, w_lever, self._l_ant_f, self._forward
+            fix.sog_mps, c_e, w_lever, self._l_ant_f, self._forward is not False
         )
         v_imu = velocity_at((vn, ve, 0.0), c_e, w_lever, self._l_ant_f, self._l_imu_f)
         return v_imu[0], v_imu[1]
@@ -746,6 +860,7 @@ class ObserverEngine:
         obs.learn = False
         self._w_pz_rps = 0.0
         self._coasting = True
+        self._end_rest()
         fix = self._last_fix
         sigma_v = (
             self.cfg.gnss_vel_sigma_mps
