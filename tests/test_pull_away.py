@@ -35,13 +35,16 @@ def _engine(name: str) -> LearningEstimator:
 
 def _drive(name: str, accel_mps2: float) -> list[tuple[float, Solution]]:
     """20 s parked on a 6/4 deg slope, 4 s of ``accel_mps2`` along body x, 10 s on."""
-    motion = Motion(
-        [Segment(REST_S), Segment(4.0, accel_mps2=accel_mps2), Segment(10.0)],
-        roll_rad=ROLL,
-        pitch_rad=PITCH,
-        yaw0_rad=YAW0,
-    )
+    segments = [Segment(REST_S), Segment(4.0, accel_mps2=accel_mps2), Segment(10.0)]
+    return _run(name, Motion(segments, roll_rad=ROLL, pitch_rad=PITCH, yaw0_rad=YAW0))
+
+
+def _run(name: str, motion: Motion, moving_before: bool = False) -> list[tuple[float, Solution]]:
+    """The engine ``name`` through ``motion`` (exact), its solution every 41 samples;
+    ``moving_before``: it takes over from one that saw the vehicle moving (a restart)."""
     engine = _engine(name)
+    if moving_before:
+        engine.moving_before()
     out: list[tuple[float, Solution]] = []
     run(
         engine,
@@ -107,16 +110,7 @@ def test_restarted_while_braking_in_reverse_then_driving_off_forward(name: str) 
         pitch_rad=PITCH,
         yaw0_rad=YAW0,
     )
-    engine = _engine(name)
-    engine.moving_before()
-    out: list[tuple[float, Solution]] = []
-    run(
-        engine,
-        imu_stream(motion),
-        gnss_stream(motion, antenna_lever_arm_m=LEVER),
-        every=41,
-        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
-    )
+    out = _run(name, motion, moving_before=True)
     aligned = [s for _, s in out if s.yaw_rad is not None]
     assert aligned
     assert max(abs(math.degrees(wrap_pi(s.yaw_rad - YAW0))) for s in aligned) < 1.0  # type: ignore[operator]
