@@ -7,8 +7,10 @@ forward speed is inertial, so:
 
 - along the track, the forward speed error grows from the last velocity's error with the
   forward acceleration error (x accelerometer bias and g times the tilt error) and with the
-  tilt the x/y gyro bias adds open loop (g b_g t): position error
-  p0 + v0 t + a t^2 / 2 + g b_g t^3 / 6;
+  tilt the gyro adds open loop: its x/y bias (g b_g t) and its angular random walk (a
+  random walk of tilt, twice integrated: g ARW t^2.5 / sqrt(20), as large as the bias's
+  term at 20 s with the ADIS16334's figures): position error
+  p0 + v0 t + a t^2 / 2 + g b_g t^3 / 6 + g ARW t^2.5 / sqrt(20);
 - across the track, the heading error (and the z gyro bias's growth of it) turns the
   distance driven sideways: s t (psi0 + b_z t / 2).
 
@@ -36,6 +38,7 @@ class CoastBudget:
     sigma_v0_mps: float  # forward speed
     sigma_a_mps2: float  # forward acceleration: x accelerometer bias and g x tilt error
     sigma_bg_rps: float  # x/y gyro bias: the tilt it adds open loop accelerates the platform
+    arw_rad_per_sqrt_s: float  # gyro angular random walk: so does the tilt it walks
     sigma_psi_rad: float  # heading
     sigma_bz_rps: float  # z gyro bias: the heading error it adds
 
@@ -46,6 +49,7 @@ class CoastBudget:
             self.sigma_v0_mps * t
             + 0.5 * self.sigma_a_mps2 * t * t
             + GRAVITY_MPS2 * self.sigma_bg_rps * t * t * t / 6.0
+            + GRAVITY_MPS2 * self.arw_rad_per_sqrt_s * t * t * math.sqrt(t / 20.0)
         )
         cross = abs(speed_mps) * t * (self.sigma_psi_rad + 0.5 * self.sigma_bz_rps * t)
         return math.sqrt(self.sigma_p0_m**2 + along * along + cross * cross)
