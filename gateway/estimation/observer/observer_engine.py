@@ -586,14 +586,14 @@ class ObserverEngine:
 
     def _level_at_rest(self, t_e: float, v_ref_ne_mps: tuple[float, float]) -> None:
         """Standing still, the tilt is the stop's mean specific force less the accelerometer
-        bias (:mod:`gateway.estimation.observer.rest_window`): once that mean is better than
-        the tilt loop's (its own noise, the gyro's ARW through tau, 0.05 deg, 3 s of samples
-        with this engine vibration; sooner where a levelling on a moving window left more in
-        it), the platform is levelled on it every epoch and the loop,
-        which would add the ARW and the x/y gyro bias error times tau (eq. 10), stays open.
-        The x/y gyro biases are learnt from what the control rate converges to at rest
-        (eq. 15), the mean bias-corrected body rate, directly (:meth:`_observe_gyro_bias_at_rest`).
-        The product's own extension of seed 000; the stated sigma keeps the loop's terms.
+        bias (:mod:`gateway.estimation.observer.rest_window`). Once that mean is better than
+        the tilt loop's tilt (its own noise, the gyro's ARW through tau, 0.05 deg: 3 s of
+        samples with this engine vibration; sooner where a levelling on a moving window left
+        more in it), the platform is levelled on it every epoch and the loop, which would
+        add the ARW and the x/y gyro bias error times tau (eq. 10), stays open. The x/y gyro
+        biases are learnt from what the control rate converges to at rest (eq. 15), the mean
+        bias-corrected body rate, directly (:meth:`_observe_gyro_bias_at_rest`). The
+        product's own extension of seed 000; the stated sigma keeps the loop's terms.
         """
         obs = self._observer
         assert obs is not None and self._t_s is not None

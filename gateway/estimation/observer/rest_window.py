@@ -9,15 +9,16 @@ each epoch interval of a stop and starts again when
 - the reference point has moved more than :data:`CREEP_M` over the window (GNSS velocity
   integrated; creeping over bumps at 0.1 m/s pitches the body by ~0.25 deg/s, below any rate
   test that the gyro noise allows at one epoch), or
-- the body has turned, by the gyro: over any span of the window ending now, the rotation
-  about x or y less the window's own mean rate (the residual gyro bias, unknown at a cold
-  start) beyond :data:`ROTATION_SIGMAS` of the ARW over the span (a front loader or a hitch
-  lifting pitches the body by 0.3-1 deg in a few seconds).
+- the body has turned, by the gyro: over the last 1, 2 or 5 s (:data:`SPANS`), the
+  rotation about x or y less the window's own mean rate (the residual gyro bias, unknown at
+  a cold start) beyond :data:`ROTATION_SIGMAS` of the ARW over the span (a front loader or
+  a hitch lifting pitches the body by 0.3-1 deg in a few seconds).
 
 The first :data:`SETTLE_S` of a stop are left out (the last of the braking, the suspension
 settling), the mean covers at most :data:`MEMORY_S` (a slow change, a tank filled, is
 followed with that lag) and leaves out its last :data:`LAG_S` (a drive-off shows in the GNSS
-speed only some 0.3 s after it began, receiver latency included).
+speed only after it began: a gentle start at 0.3 m/s^2 reaches the 0.1 m/s of the rest test
+after 0.3-0.6 s, and the receiver's latency comes on top).
 """
 
 from __future__ import annotations
