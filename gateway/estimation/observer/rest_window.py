@@ -52,8 +52,9 @@ _N = 7
 
 @dataclass(frozen=True)
 class RestLevel:
-    """The mean body specific force of the stop (biases included, m/s^2) and the 1-sigma of
-    the tilt it gives, rad, from the spread of the epochs' means."""
+    """The mean body specific force of the stop, as the epochs gave it (the engine's has its
+    accelerometer bias estimate taken out), m/s^2, and the 1-sigma of the tilt it gives, rad,
+    from the spread of the epochs' means."""
 
     f_b_mps2: Float3
     sigma_tilt_rad: float
@@ -140,7 +141,8 @@ class RestWindow:
     def _moved(self) -> bool:
         """Has the reference point moved, or the body turned, over the window (docstring)?
         The rotation is tested over the spans that end now and begin :data:`SPANS` epochs
-        back, and over the whole window."""
+        back (the whole window when it is shorter, where the detrended rotation is zero: a
+        window too short to tell a rotation from the gyro's bias)."""
         chunks = self._chunks
         t1, _, rx1, ry1, dn1, de1 = chunks[-1]
         t0, _, rx0, ry0, dn0, de0 = chunks[0]
