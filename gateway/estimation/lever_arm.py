@@ -117,12 +117,13 @@ def antenna_velocity_along_body_x(
     return (along * cy - u_lateral * sy, along * sy + u_lateral * cy)
 
 
-def velocity_change_along_x(dv_n_mps: float, dv_e_mps: float, c_bn: Mat9) -> float:
-    """A velocity change since a rest (N, E in ``c_bn``'s own azimuth, m/s, the inertial
-    one: its yaw may be anything) along body x, m/s: positive when a wheeled vehicle leaving
-    the rest drives forward, negative when it reverses (the course alone cannot tell, and a
-    reversing start aligned the heading 180 deg off)."""
-    return dv_n_mps * c_bn[0] + dv_e_mps * c_bn[3]
+def along_body_x(v_n_mps: float, v_e_mps: float, c_bn: Mat9) -> float:
+    """A horizontal velocity, or a velocity change since a rest (N, E in ``c_bn``'s own
+    azimuth, m/s: the inertial one's yaw may be anything), along body x, m/s: positive when
+    a wheeled vehicle drives forward (or leaves the rest forward), negative when it reverses
+    (the course alone cannot tell: a reversing start aligned the heading 180 deg off, and a
+    receiver's course held from before a stop points the other way)."""
+    return v_n_mps * c_bn[0] + v_e_mps * c_bn[3]
 
 
 def _lateral_lever_velocity(c: Mat9, w_b_rps: Vec, lever_arm_b: Vec) -> tuple[float, float]:

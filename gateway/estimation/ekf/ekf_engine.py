@@ -95,10 +95,10 @@ from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_varian
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
+    along_body_x,
     heading_from_antenna_course,
     lever_arm_position_ned,
     lever_arm_velocity_ned,
-    velocity_change_along_x,
 )
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
@@ -676,7 +676,7 @@ class EkfEngine:
 
     def _forward_since_rest(self, row: Array) -> bool:
         """Driving forward at ``row``: its INS velocity against that of the last epoch at
-        rest along body x (:func:`velocity_change_along_x`); forward if that rest is not in
+        rest along body x (:func:`along_body_x`); forward if that rest is not in
         the history."""
         assert self._hist is not None
         rest = None if self._t_rest_epoch_s is None else self._hist.at(self._t_rest_epoch_s)
@@ -684,7 +684,7 @@ class EkfEngine:
             return True
         dv = row[ROW_V] - rest[ROW_V]
         c = to_mat9(row[ROW_C].reshape(3, 3))
-        return velocity_change_along_x(float(dv[0]), float(dv[1]), c) >= 0.0
+        return along_body_x(float(dv[0]), float(dv[1]), c) >= 0.0
 
     def _levelled_gyro_bias_sigma_rps(self) -> float:
         """Gyro bias 1-sigma before the filter runs: the seed's (x/y, with the rest mean's),

@@ -42,6 +42,10 @@ class ObserverConfig:
     coast_sigma_m: float = 0.3
     max_coast_sigma_m: float = 2.0
     gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma (RTK carrier-phase Doppler)
+    # receivers hold their course over ground below some speed (u-blox: 0.1 m/s; static hold
+    # and low-speed course filters further up): below this, once the heading is known, the
+    # speed is taken along body x, forward or reversing as the inertial velocity says
+    course_hold_speed_mps: float = 0.5
 
     # --- IMU noise (ADIS16334 datasheet): roll/pitch sigma, heading gain, bias at rest ---
     gyro_arw_deg_per_sqrt_h: float = 2.0  # gyro angular random walk

@@ -49,11 +49,11 @@ from gateway.estimation.gnss_error import fix_position_sigma_m, fix_velocity_sig
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
+    along_body_x,
     antenna_velocity_along_body_x,
     heading_from_antenna_course,
     reference_from_antenna,
     velocity_at,
-    velocity_change_along_x,
 )
 from gateway.estimation.observer.coast_budget import CoastBudget
 from gateway.estimation.observer.heading_channel import HeadingChannel
@@ -459,11 +459,11 @@ class ObserverEngine:
             c_e = c_bn if row is None else self._attitude_at(row, c_bn)
             self._correct_position(fix, t_e, row, c_e, None)
             return
-        v_ant = (vel[0], vel[1], 0.0)
         half = 0.5 * LEVER_RATE_WINDOW_S
         w_lever = self._mean_rate(t_e - half, self._history_at(t_e + half) or row)
         w_still = self._mean_rate(t_e - STATIONARY_RATE_WINDOW_S, row)
         c_e = self._attitude_at(row, c_bn)
+        v_ant = self._antenna_velocity(fix, vel, row, c_e, w_lever)
         v_ref = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, (0.0, 0.0, 0.0))
         v_imu = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, self._l_imu_f)
         speed_ref = math.hypot(v_ref[0], v_ref[1])
@@ -669,6 +669,45 @@ class ObserverEngine:
             return (0.0, 0.0)
         return vel
 
+    def _antenna_velocity(
+        self, fix: GnssFix, vel: tuple[float, float], row: _Row, c_e: Mat9, w_lever: Float3
+    ) -> Float3:
+        """The antenna velocity (NED, m/s) an epoch gives: the receiver's, but below
+        ``course_hold_speed_mps`` with the heading known, its speed along body x.
+
+        Why: a receiver holds its course over ground at low speed (u-blox below 0.1 m/s,
+        static hold and low-speed course filters further up), so a vehicle that stops and
+        reverses reports its speed along the course it came in on. The tilt loop read twice
+        the acceleration of the reversing start: with a receiver holding its course below
+        0.5 m/s, roll 1.3 deg off with 0.18 stated (headland-reversing seed 91, 462 frames).
+        A wheeled vehicle's antenna moves along body x plus the lever arm's rotation
+        (:func:`antenna_velocity_along_body_x`); forward or reversing is what the engine's
+        own velocity says, the last epoch's carried on by f_p to this one (the antenna's,
+        with the mast's rocking). Where that is within :data:`DIRECTION_SIGMAS` of zero and
+        the speed below ``stationary_speed_mps``, the reference point is taken as still
+        (v = 0 is then within that of the truth in any direction).
+        """
+        sog = fix.sog_mps
+        cfg = self.cfg
+        if (
+            sog is None
+            or sog >= cfg.course_hold_speed_mps
+            or not (self._heading_aligned and self._nav_valid)
+        ):
+            return (vel[0], vel[1], 0.0)
+        v, sf = self._v_ned_mps, self._sf
+        v_e = (v[0] - (sf[0] - row[_SF_N]), v[1] - (sf[1] - row[_SF_E]), 0.0)
+        v_ant_e = velocity_at(v_e, c_e, w_lever, (0.0, 0.0, 0.0), self._l_ant_f)
+        u_ant = along_body_x(v_ant_e[0], v_ant_e[1], c_e)
+        sigma = math.hypot(
+            fix_velocity_sigma_mps(fix, cfg.gnss_vel_sigma_mps), cfg.dr_velocity_floor_mps
+        )
+        if abs(u_ant) < DIRECTION_SIGMAS * sigma and sog < cfg.stationary_speed_mps:
+            vn, ve, _ = velocity_at((0.0, 0.0, 0.0), c_e, w_lever, (0.0, 0.0, 0.0), self._l_ant_f)
+            return (vn, ve, 0.0)
+        vn, ve = antenna_velocity_along_body_x(sog, c_e, w_lever, self._l_ant_f, u_ant >= 0.0)
+        return (vn, ve, 0.0)
+
     def _history_at(self, t_s: float) -> _Row | None:
         """History row interpolated at ``t_s``; None if older than the history."""
         hist = self._hist
@@ -752,7 +791,7 @@ class ObserverEngine:
         if not self._forward_known:
             # the change so far; the heading's alignment takes the latest
             dn, de = row[_SF_N] - rest[_SF_N], row[_SF_E] - rest[_SF_E]
-            dv_x = velocity_change_along_x(dn, de, c_e)
+            dv_x = along_body_x(dn, de, c_e)
             self._forward = dv_x >= 0.0
             # At rest the tilt loop has made the mean horizontal f_p zero, whatever the
             # accelerometer bias; what it has not yet taken out of a levelling on a moving
