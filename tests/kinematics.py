@@ -230,15 +230,16 @@ def with_velocity_offset(
     return out
 
 
-def with_course_held(fixes: list[GnssFix], below_mps: float) -> list[GnssFix]:
+def with_course_held(fixes: list[GnssFix], below_mps: float, blank: bool = False) -> list[GnssFix]:
     """A receiver that holds its last course over ground while SOG is under ``below_mps``
-    (none before the first course above it), as receivers do at low speed."""
+    (none before the first course above it), or with ``blank`` gives none there, as
+    receivers do at low speed."""
     out, held = [], None
     for f in fixes:
         if f.sog_mps is not None and f.sog_mps >= below_mps:
             held = f.cog_rad
         else:
-            f = replace(f, cog_rad=held)
+            f = replace(f, cog_rad=None if blank else held)
         out.append(f)
     return out
 

@@ -452,18 +452,21 @@ class ObserverEngine:
         assert obs is not None
         row = self._history_at(t_e)
         c_bn = obs.c_bp9
-        vel = self._velocity_ne(fix)
-        if vel is None or row is None:
+        if row is None:
             self._prev_epoch = None
             self._update_gates(t_e, ok=False)
-            c_e = c_bn if row is None else self._attitude_at(row, c_bn)
-            self._correct_position(fix, t_e, row, c_e, None)
+            self._correct_position(fix, t_e, row, c_bn, None)
             return
         half = 0.5 * LEVER_RATE_WINDOW_S
         w_lever = self._mean_rate(t_e - half, self._history_at(t_e + half) or row)
-        w_still = self._mean_rate(t_e - STATIONARY_RATE_WINDOW_S, row)
         c_e = self._attitude_at(row, c_bn)
-        v_ant = self._antenna_velocity(fix, vel, row, c_e, w_lever)
+        v_ant = self._antenna_velocity(fix, row, c_e, w_lever)
+        if v_ant is None:
+            self._prev_epoch = None
+            self._update_gates(t_e, ok=False)
+            self._correct_position(fix, t_e, row, c_e, None)
+            return
+        w_still = self._mean_rate(t_e - STATIONARY_RATE_WINDOW_S, row)
         v_ref = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, (0.0, 0.0, 0.0))
         v_imu = velocity_at(v_ant, c_e, w_lever, self._l_ant_f, self._l_imu_f)
         speed_ref = math.hypot(v_ref[0], v_ref[1])
@@ -658,43 +661,38 @@ class ObserverEngine:
         self._rest.stop()
         self._prev_rest_row = self._rest_last_row = None
 
-    def _velocity_ne(self, fix: GnssFix) -> tuple[float, float] | None:
-        """Horizontal antenna velocity; a receiver that has never moved gives SOG only.
-
-        Without COG, a speed below ``stationary_speed_mps`` is taken as zero velocity (the
-        tilt loop then still levels the platform at rest before the first drive).
-        """
-        vel = fix.vel_ne_mps
-        if vel is None and fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps:
-            return (0.0, 0.0)
-        return vel
-
     def _antenna_velocity(
-        self, fix: GnssFix, vel: tuple[float, float], row: _Row, c_e: Mat9, w_lever: Float3
-    ) -> Float3:
-        """The antenna velocity (NED, m/s) an epoch gives: the receiver's, but below
+        self, fix: GnssFix, row: _Row, c_e: Mat9, w_lever: Float3
+    ) -> Float3 | None:
+        """The antenna velocity (NED, m/s) an epoch gives, or None: the receiver's, but below
         ``course_hold_speed_mps`` with the heading known, its speed along body x.
 
-        Why: a receiver holds its course over ground at low speed (u-blox below 0.1 m/s,
-        static hold and low-speed course filters further up), so a vehicle that stops and
-        reverses reports its speed along the course it came in on. The tilt loop read twice
-        the acceleration of the reversing start: with a receiver holding its course below
-        0.5 m/s, roll 1.3 deg off with 0.18 stated (headland-reversing seed 91, 462 frames).
-        A wheeled vehicle's antenna moves along body x plus the lever arm's rotation
-        (:func:`antenna_velocity_along_body_x`); forward or reversing is what the engine's
-        own velocity says, the last epoch's carried on by f_p to this one (the antenna's,
-        with the mast's rocking). Where that is within :data:`DIRECTION_SIGMAS` of zero and
-        the speed below ``stationary_speed_mps``, the reference point is taken as still
-        (v = 0 is then within that of the truth in any direction).
+        Why: a receiver holds or blanks its course over ground at low speed (u-blox below
+        0.1 m/s, static hold and low-speed course filters further up), so a vehicle that
+        stops and reverses reports its speed along the course it came in on. The tilt loop
+        read twice the acceleration of the reversing start: with a receiver holding its
+        course below 0.5 m/s, roll 1.3 deg off with 0.18 stated (headland-reversing seed 91,
+        462 frames). A wheeled vehicle's antenna moves along body x plus the lever arm's
+        rotation (:func:`antenna_velocity_along_body_x`); forward or reversing is what the
+        engine's own velocity says, the last epoch's carried on by f_p to this one (the
+        antenna's, with the mast's rocking). Where that is within :data:`DIRECTION_SIGMAS`
+        of zero and the speed below ``stationary_speed_mps``, the reference point is taken
+        as still (v = 0 is then within that of the truth in any direction).
+
+        Before the heading is known, a receiver that has not moved yet gives SOG only: a
+        speed below ``stationary_speed_mps`` is then zero velocity (the tilt loop still
+        levels the platform at rest before the first drive), a faster one no velocity.
         """
-        sog = fix.sog_mps
+        sog, vel = fix.sog_mps, fix.vel_ne_mps
         cfg = self.cfg
         if (
             sog is None
             or sog >= cfg.course_hold_speed_mps
             or not (self._heading_aligned and self._nav_valid)
         ):
-            return (vel[0], vel[1], 0.0)
+            if vel is not None:
+                return (vel[0], vel[1], 0.0)
+            return (0.0, 0.0, 0.0) if sog is not None and sog < cfg.stationary_speed_mps else None
         v, sf = self._v_ned_mps, self._sf
         v_e = (v[0] - (sf[0] - row[_SF_N]), v[1] - (sf[1] - row[_SF_E]), 0.0)
         v_ant_e = velocity_at(v_e, c_e, w_lever, (0.0, 0.0, 0.0), self._l_ant_f)
