@@ -67,6 +67,7 @@ from gateway.estimation.ekf.error_state import (
     FIX,
     N_STATES,
     POS,
+    RATE_LP_TAU_S,
     VEL,
     Measurement,
     Strapdown,
@@ -196,7 +197,8 @@ class EkfEngine:
         # (t, sums, n, f0 sums) to level with
         self._win_marks: deque[tuple[float, Array, int, list[float]]] = deque()
         self._still_since_s: float | None = None  # when the fixes last began to say still
-        self._win_at_rest = True  # every sample of the window quiet and GNSS speed ~0
+        self._align_w_lp: Float3 | None = None  # body rate low-passed (RATE_LP_TAU_S): quiet?
+        self._win_at_rest = True  # the window quiet (low-passed rate) and GNSS speed ~0
         self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
         self._rest_bias_s = 0.0  # rest duration behind the gyro bias estimate, 0 if none
         self._win_motion = WindowMotion(self.cfg.gnss_vel_sigma_mps, self.cfg.stationary_speed_mps)
@@ -264,17 +266,18 @@ class EkfEngine:
     def _align_tilt(self, t: float, w: Float3, f: Float3, dt: float) -> None:
         """Roll/pitch from the mean specific force of a quiet window; gyro bias if at rest.
 
-        Quiet = |w| below ``align_quiet_rate_dps`` and, once GNSS speaks, speed below
-        ``stationary_speed_mps``. The window grows while quiet and re-levels the INS every
-        ``align_tilt_time_s`` until the heading is known, so alignment uses the last rest
-        before the vehicle drives off. At rest the mean rate is the gyro bias plus Earth rate
-        (at most 0.004 deg/s, left in its 1-sigma). If never quiet for ``ALIGN_TIMEOUT_S``,
-        a moving window levels the INS (no gyro bias) and the filter finishes the job. A rest
-        window starts :data:`ALIGN_SETTLE_S` after GNSS says still and levels with its samples
-        up to :data:`ALIGN_LAG_S` ago: the stop before it and the pull-away after it, which
-        GNSS reports late, are not in the mean. A moving window's attitude changes (a rough
-        slope rocks the vehicle a degree within a second): its specific force is carried into
-        its first body frame by the gyro, and its tilt from there to now.
+        Quiet = |w| low-passed (:data:`RATE_LP_TAU_S`) below ``align_quiet_rate_dps`` and, once
+        GNSS speaks, speed below ``stationary_speed_mps``. The window grows while quiet and
+        re-levels the INS every ``align_tilt_time_s`` until the heading is known, so alignment
+        uses the last rest before the vehicle drives off. At rest the mean rate is the gyro bias
+        plus Earth rate (at most 0.004 deg/s, left in its 1-sigma). If never quiet for
+        ``ALIGN_TIMEOUT_S``, a moving window levels the INS (no gyro bias) and the filter
+        finishes the job. A rest window starts :data:`ALIGN_SETTLE_S` after GNSS says still and
+        levels with its samples up to :data:`ALIGN_LAG_S` ago: the stop before it and the
+        pull-away after it, which GNSS reports late, are not in the mean. A moving window's
+        attitude changes (a rough slope rocks the vehicle a degree within a second): its
+        specific force is carried into its first body frame by the gyro, and its tilt from there
+        to now.
         """
         if self._align_first_s is None:
             self._align_first_s = t
@@ -283,10 +286,15 @@ class EkfEngine:
             still = not self._win_motion.moving_before
         else:
             still = fix.sog_mps is None or fix.sog_mps < self.cfg.stationary_speed_mps
-        quiet = (
-            math.sqrt(w[0] ** 2 + w[1] ** 2 + w[2] ** 2)
-            < self.cfg.align_quiet_rate_dps * DEG_TO_RAD
-        )
+        # the rate low-passed: one sample's gyro noise (0.5 deg/s an axis) and engine
+        # vibration passed the threshold sample by sample, so a parked vehicle on a rough
+        # engine never had a quiet window (3x the simulator's vibration: pitch 5 deg off
+        # open loop after 23 s parked, the heading then aligned 180 deg off)
+        lp = self._align_w_lp or w
+        a = dt / (RATE_LP_TAU_S + dt)
+        lp = (lp[0] + a * (w[0] - lp[0]), lp[1] + a * (w[1] - lp[1]), lp[2] + a * (w[2] - lp[2]))
+        self._align_w_lp = lp
+        quiet = math.hypot(*lp) < self.cfg.align_quiet_rate_dps * DEG_TO_RAD
         if not still:
             self._still_since_s = None
         elif self._still_since_s is None:

@@ -96,7 +96,9 @@ BODY_X_LOOP_S = 5.0
 #: Forward or reversing after a rest, before the heading is known: the inertial velocity
 #: change along body x, once it exceeds this many sigma of what the tilt left by a levelling
 #: on a moving window and this floor (m/s: the engine vibration integrated over the first
-#: epochs) put into it (:meth:`ObserverEngine._velocity_along_body_x`).
+#: epochs) put into it (:meth:`ObserverEngine._velocity_along_body_x`). With the heading
+#: known, under a held course, the engine's own velocity along body x beyond this many sigma
+#: of the fix's velocity noise (:meth:`ObserverEngine._antenna_velocity`).
 DIRECTION_SIGMAS = 3.0
 DIRECTION_DV_FLOOR_MPS = 0.02
 #: Body rate for the stationarity test: mean over this long before the epoch.
