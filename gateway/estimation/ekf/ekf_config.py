@@ -36,7 +36,8 @@ class EkfConfig:
     gyro_bias_sigma0_dps: float = 0.1
     accel_bias_sigma0_mps2: float = 5.0 * MG_MPS2
     # Engine vibration seen by the IMU (installation, not datasheet): broadband 1-sigma per
-    # sample, added to the white noise densities as sigma^2 dt
+    # sample, added to the white noise densities as sigma^2 dt; the least the filter assumes
+    # (the noise measured at rest replaces it where larger: gateway/estimation/imu_noise.py)
     vibration_gyro_dps: float = 0.05
     vibration_accel_mps2: float = 0.2
 

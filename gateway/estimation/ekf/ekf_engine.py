@@ -36,7 +36,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 import numpy.typing as npt
@@ -94,6 +94,7 @@ from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
 from gateway.estimation.gnss_track import GnssTrack
+from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
     along_body_x,
@@ -198,6 +199,8 @@ class EkfEngine:
         self._win_marks: deque[tuple[float, Array, int, list[float]]] = deque()
         self._still_since_s: float | None = None  # when the fixes last began to say still
         self._align_w_lp: Float3 | None = None  # body rate low-passed (RATE_LP_TAU_S): quiet?
+        self._noise = ImuNoiseMeter()  # the IMU's white noise at rest, vibration included
+        self._imu_dt_s = 0.0  # the IMU's sample period, s
         self._win_at_rest = True  # the window quiet (low-passed rate) and GNSS speed ~0
         self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
         self._rest_bias_s = 0.0  # rest duration behind the gyro bias estimate, 0 if none
@@ -234,6 +237,7 @@ class EkfEngine:
         w, f = sample.w_ib_b, sample.f_ib_b
         if self._tuning is None:
             self._tuning = EkfTuning.from_config(self.cfg, dt)
+            self._imu_dt_s = dt
             self._q_c = process_noise_psd(self._tuning)
             self._hist = InsHistory(max(2, math.ceil(self.cfg.history_s / dt)))
         self._t_s = t
@@ -300,6 +304,10 @@ class EkfEngine:
         elif self._still_since_s is None:
             self._still_since_s = t
         still_s = 0.0 if self._still_since_s is None else t - self._still_since_s
+        if quiet and still and still_s >= ALIGN_SETTLE_S:
+            self._noise.add(w, f)
+        else:
+            self._noise.restart()
         if not (quiet and still):
             if self._ins is not None or t - self._align_first_s < ALIGN_TIMEOUT_S:
                 self._win_t0_s = None
@@ -653,6 +661,7 @@ class EkfEngine:
         row_aligned = hist.at(t_e)
         assert row_aligned is not None
         self._p = np.zeros((N_STATES, N_STATES))
+        tun = self._noise_as_measured(tun)
         ins.take_interval()
         sig_bg = self._levelled_gyro_bias_sigma_rps()
         sig_ba = tun.sigma_bias_a0_mps2
@@ -681,6 +690,34 @@ class EkfEngine:
         self._set_from_fix(fix, t_e, row_aligned)
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
+
+    def _noise_as_measured(self, tun: EkfTuning) -> EkfTuning:
+        """The white rate and acceleration noise the IMU showed at rest, where it is more
+        than the config's (``[ekf] vibration_*``, :mod:`gateway.estimation.imu_noise`): the
+        process noise of an installation on a rough engine. Set as the filter starts."""
+        measured = self._noise.sigma_per_sample()
+        if measured is None:
+            return tun
+        sig_g, sig_a = measured
+        # beyond the config's by more than three sigma of the measurement's own scatter
+        # (~45 % in variance after 3 s): a sensor as the config says keeps the config's
+        k = 1.0 / (1.0 + 3.0 * self._noise.variance_scatter())
+        q_g, q_a = tun.q_gyro_rad2_per_s, tun.q_accel_m2_per_s3
+        q_g = max(q_g, k * sig_g * sig_g * self._imu_dt_s)
+        q_a = max(q_a, k * sig_a * sig_a * self._imu_dt_s)
+        if (q_g, q_a) == (tun.q_gyro_rad2_per_s, tun.q_accel_m2_per_s3):
+            return tun
+        log.info(
+            "IMU noise at rest %.2f deg/s and %.3f m/s^2 a sample (engine vibration included): "
+            "above [ekf] vibration_*, the filter's process noise raised to it",
+            math.degrees(sig_g),
+            sig_a,
+        )
+        tun = replace(tun, q_gyro_rad2_per_s=q_g, q_accel_m2_per_s3=q_a)
+        fix_q = self._q_c[FIX].copy()
+        self._tuning, self._q_c = tun, process_noise_psd(tun)
+        self._q_c[FIX] = fix_q
+        return tun
 
     def _forward_since_rest(self, row: Array) -> bool:
         """Driving forward at ``row``: its INS velocity against that of the last epoch at

@@ -1,0 +1,81 @@
+"""The IMU's white noise as installed, measured at rest: sensor noise plus engine vibration.
+
+The datasheet gives the sensor's noise; the engine's vibration is the installation's, and
+on a rough engine it is several times what ``[ekf] vibration_*`` assumes: a filter whose
+process noise is too small states an attitude better than it is (three times the
+simulator's vibration: 0.40 deg off with 0.063 stated). At rest the IMU's output is
+constant but for its noise, so the spread of its means over blocks of one GNSS epoch
+(0.1 s) is the noise the filter integrates between two velocity updates: broadband noise
+in full, the engine's firing frequency (a sinusoid near 28 Hz, 2.7 cycles a block) only
+as far as it does not average out over a block, which is the share that reaches the
+velocity at the epochs.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+from drivers.samples import Float3
+
+#: Samples a block (0.1 s at 204.8 Hz: a GNSS epoch at 10 Hz).
+BLOCK_SAMPLES = 20
+#: Block differences before the measurement is used: 3 s at 204.8 Hz, a sigma within ~8 %.
+MIN_BLOCK_PAIRS = 30
+
+
+@dataclass
+class ImuNoiseMeter:
+    """White noise per sample of the gyro and accelerometer, from successive block means
+    at rest: for white noise of sigma per sample, the difference of two block means of n
+    samples has variance 2 sigma^2 / n. Fed only at rest; :meth:`restart` when a rest ends
+    (the next rest starts a new chain, the statistics are kept)."""
+
+    _sums: list[float] = field(default_factory=lambda: [0.0] * 6)
+    _n: int = 0
+    _prev: tuple[float, ...] | None = None  # the last block's means, w then f
+    _sq_g: float = 0.0  # sums of squared differences of block means, all three axes
+    _sq_a: float = 0.0
+    pairs: int = 0
+
+    def add(self, w_rps: Float3, f_mps2: Float3) -> None:
+        """One sample at rest (body rate rad/s, specific force m/s^2)."""
+        s = self._sums
+        s[0] += w_rps[0]
+        s[1] += w_rps[1]
+        s[2] += w_rps[2]
+        s[3] += f_mps2[0]
+        s[4] += f_mps2[1]
+        s[5] += f_mps2[2]
+        self._n += 1
+        if self._n < BLOCK_SAMPLES:
+            return
+        means = tuple(x / BLOCK_SAMPLES for x in s)
+        prev = self._prev
+        if prev is not None:
+            d = [a - b for a, b in zip(means, prev, strict=True)]
+            self._sq_g += d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
+            self._sq_a += d[3] * d[3] + d[4] * d[4] + d[5] * d[5]
+            self.pairs += 1
+        self._prev = means
+        self._sums = [0.0] * 6
+        self._n = 0
+
+    def restart(self) -> None:
+        """The rest is over: the block under way and the chain of differences end."""
+        self._sums = [0.0] * 6
+        self._n = 0
+        self._prev = None
+
+    def variance_scatter(self) -> float:
+        """Relative 1-sigma of the measured variances (chi-square: sqrt(2 / n) for n squared
+        differences), so a caller takes them over a model only where they are beyond it."""
+        return math.sqrt(2.0 / (3.0 * self.pairs)) if self.pairs else math.inf
+
+    def sigma_per_sample(self) -> tuple[float, float] | None:
+        """(gyro rad/s, accelerometer m/s^2) white noise 1-sigma per sample and axis, or None
+        before :data:`MIN_BLOCK_PAIRS` block differences."""
+        if self.pairs < MIN_BLOCK_PAIRS:
+            return None
+        k = BLOCK_SAMPLES / (2.0 * 3.0 * self.pairs)
+        return math.sqrt(self._sq_g * k), math.sqrt(self._sq_a * k)
