@@ -96,3 +96,26 @@ def test_the_ekf_states_the_noise_of_a_rough_engine() -> None:
     sig_rough, err_rough = _ekf_sigma_after_drive_off(0.8)
     assert sig_rough > 1.15 * sig_quiet
     assert err_rough < 0.1 + 3.0 * sig_rough
+
+
+def _sigma_started_on_the_move(meter: ImuNoiseMeter | None) -> float:
+    """An EKF started at 3 m/s (a restart after an IMU stall: no rest before its filter
+    starts) with the rough engine's noise: its stated tilt sigma at the end, deg."""
+    segments = [Segment(10.0), Segment(20.0, yaw_rate_rps=0.1), Segment(20.0, yaw_rate_rps=-0.1)]
+    motion = Motion([*segments, Segment(20.0)], v0_mps=3.0, yaw0_rad=0.5)
+    engine = EkfEngine(EkfConfig(), None, meter)
+    engine.moving_before()
+    imu = imu_stream(motion, noise_g_rps=0.5 * DEG_TO_RAD, noise_a_mps2=0.8, seed=4)
+    run(engine, imu, gnss_stream(motion, vel_noise_mps=0.02))
+    sigma = engine.solution().sigma_tilt_rad
+    assert sigma is not None
+    return math.degrees(sigma)
+
+
+def test_an_engine_restarted_on_the_move_keeps_the_noise_measured_at_rest() -> None:
+    """The fusion core hands one meter to every engine it starts (as it does the epoch
+    clock): an engine restarted while driving states the noise its predecessor measured
+    parked, not the config's (0.15 deg against 0.09 after 70 s of driving)."""
+    meter = ImuNoiseMeter()
+    _feed(meter, 20 * 205, 0.5 * DEG_TO_RAD, 0.8, 0.0)
+    assert _sigma_started_on_the_move(meter) > 1.3 * _sigma_started_on_the_move(None)

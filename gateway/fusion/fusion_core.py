@@ -54,6 +54,7 @@ import can
 
 from drivers.samples import GnssFix, ImuAux, ImuCounters, ImuSample
 from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.solution import LearnedState, LearningEstimator, Mode, Solution
 from gateway.fusion.engines import epoch_clock, make_engine
 from gateway.fusion.output_guard import OutputGuard
@@ -174,6 +175,7 @@ class FusionCore:
         the learned state comes from (None: every start is cold); ``track_rest``: follow the
         rests for the learned state."""
         clock = epoch_clock(config)  # one for every engine of this core (restarts included)
+        noise = ImuNoiseMeter()  # the same
         isobus = config.isobus
         name = Name(
             identity_number=isobus.identity_number,
@@ -202,8 +204,8 @@ class FusionCore:
             load_equivalency=isobus.load_equivalency,
         )
         return cls(
-            engine=make_engine(config, clock),
-            make_engine=partial(make_engine, config, clock),
+            engine=make_engine(config, clock, noise),
+            make_engine=partial(make_engine, config, clock, noise),
             scheduler=scheduler,
             claimer=claimer,
             network=NetworkManager(claimer, product, periodic=scheduler.rates_hz),

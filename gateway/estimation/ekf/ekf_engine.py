@@ -156,9 +156,15 @@ class EkfCounters:
 class EkfEngine:
     """Loosely coupled GNSS/INS error-state EKF (ALGORITHMS.md 3) behind the Estimator protocol."""
 
-    def __init__(self, config: EkfConfig | None = None, clock: EpochClock | None = None) -> None:
+    def __init__(
+        self,
+        config: EkfConfig | None = None,
+        clock: EpochClock | None = None,
+        noise: ImuNoiseMeter | None = None,
+    ) -> None:
         """``clock``: the epoch clock to use (one that outlives the engine keeps what it learnt
-        of the host clock across a restart), else a new one from ``config``."""
+        of the host clock across a restart), else a new one from ``config``; ``noise``: the
+        same for the IMU's noise measured at rest (a restart on the move has no rest)."""
         cfg = config if config is not None else EkfConfig()
         self.cfg = cfg
         self.counters = EkfCounters()
@@ -199,7 +205,7 @@ class EkfEngine:
         self._win_marks: deque[tuple[float, Array, int, list[float]]] = deque()
         self._still_since_s: float | None = None  # when the fixes last began to say still
         self._align_w_lp: Float3 | None = None  # body rate low-passed (RATE_LP_TAU_S): quiet?
-        self._noise = ImuNoiseMeter()  # the IMU's white noise at rest, vibration included
+        self._noise = noise or ImuNoiseMeter()  # the IMU's white noise at rest, vibration too
         self._imu_dt_s = 0.0  # the IMU's sample period, s
         self._win_at_rest = True  # the window quiet (low-passed rate) and GNSS speed ~0
         self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
