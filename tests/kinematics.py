@@ -25,7 +25,7 @@ import numpy.typing as npt
 from drivers.samples import FixQuality, GnssFix, ImuSample
 from drivers.units import GRAVITY_MPS2
 from gateway.estimation.geodesy import ned_to_lla
-from gateway.estimation.solution import Estimator
+from gateway.estimation.solution import Estimator, Solution
 
 Array = npt.NDArray[np.float64]
 ORIGIN_LLA = np.array([52.2, 10.5, 80.0])
@@ -258,6 +258,18 @@ def run(
     for k, s in fed(engine, imu, fixes):
         if on_sample is not None and every > 0 and k % every == 0:
             on_sample(s)
+
+
+def solutions(
+    engine: Estimator, imu: list[ImuSample], fixes: list[GnssFix], every: int = 41
+) -> list[tuple[float, Solution]]:
+    """:func:`run`, keeping the engine's solution with its motion time after every
+    ``every``-th IMU sample."""
+    out: list[tuple[float, Solution]] = []
+    for k, s in fed(engine, imu, fixes):
+        if k % every == 0:
+            out.append((motion_time(s.t), engine.solution()))
+    return out
 
 
 def fed(

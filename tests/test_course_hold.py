@@ -21,15 +21,7 @@ from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import LearningEstimator, Solution
-from tests.kinematics import (
-    Motion,
-    Segment,
-    gnss_stream,
-    imu_stream,
-    motion_time,
-    run,
-    with_course_held,
-)
+from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, solutions, with_course_held
 
 LEVER = (0.5, 0.0, -3.0)
 ROLL, PITCH, YAW0 = math.radians(6.0), math.radians(4.0), 1.0
@@ -58,15 +50,7 @@ def _run(name: str, hold_below_mps: float, blank: bool) -> list[tuple[float, Sol
     engine = _engine(name)
     fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER)
     fixes = with_course_held(fixes, hold_below_mps, blank)
-    out: list[tuple[float, Solution]] = []
-    run(
-        engine,
-        imu_stream(motion),
-        fixes,
-        every=41,
-        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
-    )
-    return out
+    return solutions(engine, imu_stream(motion), fixes)
 
 
 @pytest.mark.parametrize(("hold_below_mps", "blank"), [(0.1, False), (0.5, False), (0.5, True)])

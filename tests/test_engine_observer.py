@@ -21,6 +21,7 @@ from tests.kinematics import (
     imu_stream,
     motion_time,
     run,
+    solutions,
     state_at,
     with_velocity_offset,
 )
@@ -147,14 +148,7 @@ def test_a_platform_tilted_beyond_the_glitch_gate_recovers() -> None:
         for s in imu
     ]
     engine = ObserverEngine(ObserverConfig(antenna_lever_arm_m=LEVER))
-    out: list[tuple[float, Solution]] = []
-    run(
-        engine,
-        samples,
-        gnss_stream(motion, antenna_lever_arm_m=LEVER),
-        every=41,
-        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
-    )
+    out = solutions(engine, samples, gnss_stream(motion, antenna_lever_arm_m=LEVER))
     assert math.degrees(abs(_at(out, 44.5).roll_rad or 0.0)) > 20.0  # beyond the gate
     late = [abs(s.roll_rad or 0.0) for t, s in out if t > 100.0]
     assert math.degrees(max(late)) < 0.2

@@ -8,7 +8,7 @@ from gateway.estimation.observer.heading_channel import GyroZBiasKf
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Solution
-from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, motion_time, run, state_at
+from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, solutions, state_at
 
 START = [Segment(3.0), Segment(3.0, accel_mps2=1.0)]  # still, then up to 3 m/s
 
@@ -22,13 +22,11 @@ def _trace(
     every: int = 41,
 ) -> tuple[ObserverEngine, list[tuple[float, Solution]]]:
     engine = ObserverEngine(cfg)
-    out: list[tuple[float, Solution]] = []
-    run(
+    out = solutions(
         engine,
         imu_stream(motion, bias_g_rps=bias_g, noise_g_rps=0.002, seed=3),
         gnss_stream(motion, vel_noise_mps=vel_noise, hdt=hdt),
         every=every,
-        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
     )
     return engine, out
 

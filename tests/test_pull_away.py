@@ -20,7 +20,7 @@ from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import LearningEstimator, Mode, Solution
-from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, motion_time, run
+from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, solutions
 
 LEVER = (0.5, 0.0, -3.0)
 ROLL, PITCH, YAW0 = math.radians(6.0), math.radians(4.0), 1.0
@@ -45,15 +45,7 @@ def _run(name: str, motion: Motion, moving_before: bool = False) -> list[tuple[f
     engine = _engine(name)
     if moving_before:
         engine.moving_before()
-    out: list[tuple[float, Solution]] = []
-    run(
-        engine,
-        imu_stream(motion),
-        gnss_stream(motion, antenna_lever_arm_m=LEVER),
-        every=41,
-        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
-    )
-    return out
+    return solutions(engine, imu_stream(motion), gnss_stream(motion, antenna_lever_arm_m=LEVER))
 
 
 def _tilt_error_deg(sol: Solution) -> float:

@@ -21,7 +21,7 @@ from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import LearningEstimator, Solution
-from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, motion_time, run
+from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, solutions
 
 LEVER = (0.5, 0.0, -3.0)
 ROLL, PITCH, YAW0 = math.radians(6.0), math.radians(4.0), 1.0
@@ -50,15 +50,9 @@ def _run(name: str) -> list[tuple[float, Solution]]:
         noise_a_mps2=ACCEL_NOISE_MPS2,
         seed=3,
     )
-    out: list[tuple[float, Solution]] = []
-    run(
-        engine,
-        imu,
-        gnss_stream(motion, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02),
-        every=41,
-        on_sample=lambda s: out.append((motion_time(s.t), engine.solution())),
+    return solutions(
+        engine, imu, gnss_stream(motion, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02)
     )
-    return out
 
 
 def test_parked_on_a_rough_engine_the_ekf_levels_at_rest() -> None:
