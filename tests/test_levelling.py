@@ -43,6 +43,20 @@ def test_after_a_restart_on_the_move_a_window_without_velocity_is_of_unknown_mot
     assert motion.tilt_sigma_rad() == 0.0
 
 
+def test_a_slow_speed_without_a_course_is_a_vehicle_standing_still() -> None:
+    """A receiver gives no course before it has moved (u-blox's NMEA blanks it below 0.1 m/s
+    too): after a restart, a window of such fixes is a parked vehicle's, not unknown motion
+    (an EKF restarted in a parked vehicle's first alignment stated 11.5 deg, and its filter
+    went 7 deg off when it started with it); a faster one without a course tells nothing."""
+    motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1, moving_before=True)
+    for k in range(11):
+        motion.add(GnssFix(t=0.1 * k, t_utc=0.1 * k, quality=FixQuality.RTK_FIXED, sog_mps=0.03))
+    assert motion.tilt_sigma_rad() == 0.0
+    motion.restart()
+    motion.add(GnssFix(t=2.0, t_utc=2.0, quality=FixQuality.RTK_FIXED, sog_mps=0.5))
+    assert motion.tilt_sigma_rad() == UNKNOWN_MOTION_TILT_RAD
+
+
 @pytest.mark.parametrize("accel_mps2", [0.3, 0.84, 2.0])
 def test_a_speeding_up_window_carries_its_acceleration_over_g(accel_mps2: float) -> None:
     motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1)
