@@ -41,6 +41,17 @@ def fix_velocity_sigma_mps(fix: GnssFix, floor_mps: float) -> float:
     return max(floor_mps, row[2]) if row is not None else floor_mps
 
 
+def fix_velocity_ne_mps(fix: GnssFix, stationary_speed_mps: float) -> tuple[float, float] | None:
+    """Horizontal antenna velocity of ``fix`` (N, E, m/s) from SOG and COG, or None. A speed
+    under ``stationary_speed_mps`` without a course is a vehicle standing still: a receiver
+    gives no course before it has moved, and u-blox's NMEA blanks it below 0.1 m/s. A faster
+    one without a course is no velocity."""
+    vel = fix.vel_ne_mps
+    if vel is None and fix.sog_mps is not None and fix.sog_mps < stationary_speed_mps:
+        return (0.0, 0.0)
+    return vel
+
+
 def split_fix_variance(sigma_m: float, white_share: float) -> tuple[float, float]:
     """(white, wandering) variance of a fix error of 1-sigma ``sigma_m``: ``white_share`` of
     the sigma is independent from epoch to epoch, the rest is the Gauss-Markov wander."""

@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 from drivers.samples import GnssFix
 from drivers.units import GRAVITY_MPS2
+from gateway.estimation.gnss_error import fix_velocity_ne_mps
 
 #: Tilt 1-sigma of a window levelled while moving with fewer than two GNSS velocities in it
 #: (1 Hz GNSS, a lost fix): 2 m/s^2, hard braking or pulling away of a farm vehicle, over g.
@@ -43,15 +44,12 @@ class WindowMotion:
         self._moving = False
 
     def add(self, fix: GnssFix) -> None:
-        """Note the fix's velocity if it has one (SOG/COG). A speed under
-        ``stationary_speed_mps`` without a course is a vehicle standing still: a receiver
-        gives no course before it has moved, and u-blox's NMEA blanks it below 0.1 m/s. Left
-        out, an engine restarted in a parked vehicle's first alignment took its rest for
-        unknown motion (11.5 deg of tilt sigma) and, started with it, its filter went 7 deg
-        off while stating 0.4 (outages seed 101, a stall at 25 s)."""
-        vel = fix.vel_ne_mps
-        if vel is None and fix.sog_mps is not None and fix.sog_mps < self.stationary_speed_mps:
-            vel = (0.0, 0.0)
+        """Note the fix's velocity if it has one (:func:`fix_velocity_ne_mps`: a slow speed
+        without a course is standing still). Without that rule an engine restarted in a
+        parked vehicle's first alignment took its rest for unknown motion (11.5 deg of tilt
+        sigma) and, started with it, its filter went 7 deg off while stating 0.4 (outages
+        seed 101, a stall at 25 s)."""
+        vel = fix_velocity_ne_mps(fix, self.stationary_speed_mps)
         if vel is None or not math.isfinite(vel[0] + vel[1] + fix.t):
             return
         self._moving |= math.hypot(*vel) >= self.stationary_speed_mps

@@ -45,13 +45,18 @@ from gateway.estimation.engine_base import (
 )
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
-from gateway.estimation.gnss_error import fix_position_sigma_m, fix_velocity_sigma_mps
+from gateway.estimation.gnss_error import (
+    fix_position_sigma_m,
+    fix_velocity_ne_mps,
+    fix_velocity_sigma_mps,
+)
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
     along_body_x,
     antenna_velocity_along_body_x,
     heading_from_antenna_course,
+    lever_arm_velocity_ned,
     reference_from_antenna,
     velocity_at,
 )
@@ -683,18 +688,18 @@ class ObserverEngine:
 
         Before the heading is known, a receiver that has not moved yet gives SOG only: a
         speed below ``stationary_speed_mps`` is then zero velocity (the tilt loop still
-        levels the platform at rest before the first drive), a faster one no velocity.
+        levels the platform at rest before the first drive), a faster one no velocity
+        (:func:`fix_velocity_ne_mps`).
         """
-        sog, vel = fix.sog_mps, fix.vel_ne_mps
+        sog = fix.sog_mps
         cfg = self.cfg
         if (
             sog is None
             or sog >= cfg.course_hold_speed_mps
             or not (self._heading_aligned and self._nav_valid)
         ):
-            if vel is not None:
-                return (vel[0], vel[1], 0.0)
-            return (0.0, 0.0, 0.0) if sog is not None and sog < cfg.stationary_speed_mps else None
+            vel = fix_velocity_ne_mps(fix, cfg.stationary_speed_mps)
+            return None if vel is None else (vel[0], vel[1], 0.0)
         v, sf = self._v_ned_mps, self._sf
         v_e = (v[0] - (sf[0] - row[_SF_N]), v[1] - (sf[1] - row[_SF_E]), 0.0)
         v_ant_e = velocity_at(v_e, c_e, w_lever, (0.0, 0.0, 0.0), self._l_ant_f)
@@ -703,7 +708,7 @@ class ObserverEngine:
             fix_velocity_sigma_mps(fix, cfg.gnss_vel_sigma_mps), cfg.dr_velocity_floor_mps
         )
         if abs(u_ant) < DIRECTION_SIGMAS * sigma and sog < cfg.stationary_speed_mps:
-            vn, ve, _ = velocity_at((0.0, 0.0, 0.0), c_e, w_lever, (0.0, 0.0, 0.0), self._l_ant_f)
+            vn, ve, _ = lever_arm_velocity_ned(c_e, w_lever, self._l_ant_f)
             return (vn, ve, 0.0)
         vn, ve = antenna_velocity_along_body_x(sog, c_e, w_lever, self._l_ant_f, u_ant >= 0.0)
         return (vn, ve, 0.0)
