@@ -14,6 +14,7 @@ velocity at the epochs.
 from __future__ import annotations
 
 import math
+from collections import deque
 from dataclasses import dataclass, field
 
 from drivers.samples import Float3
@@ -22,6 +23,11 @@ from drivers.samples import Float3
 BLOCK_SAMPLES = 20
 #: Block differences before the measurement is used: 3 s at 204.8 Hz, a sigma within ~8 %.
 MIN_BLOCK_PAIRS = 30
+#: Blocks left out at the start of a rest and held back until this many more have come
+#: (1 s): the last of the braking and the suspension settling, and the first of a drive-off,
+#: which a rest test on the GNSS speed sees only 0.3-0.6 s after it began (its acceleration
+#: in one block difference counts as much as a minute of vibration at rest).
+EDGE_BLOCKS = 10
 
 
 @dataclass
@@ -29,13 +35,16 @@ class ImuNoiseMeter:
     """White noise per sample of the gyro and accelerometer, from successive block means
     at rest: for white noise of sigma per sample, the difference of two block means of n
     samples has variance 2 sigma^2 / n. Fed only at rest; :meth:`restart` when a rest ends
-    (the next rest starts a new chain, the statistics are kept)."""
+    (the next rest starts a new chain, the statistics are kept). A rest's first and last
+    :data:`EDGE_BLOCKS` are left out."""
 
     _sums: list[float] = field(default_factory=lambda: [0.0] * 6)
     _n: int = 0
     _prev: tuple[float, ...] | None = None  # the last block's means, w then f
     _sq_g: float = 0.0  # sums of squared differences of block means, all three axes
     _sq_a: float = 0.0
+    _blocks: int = 0  # blocks of this rest so far
+    _held: deque[tuple[float, float]] = field(default_factory=deque)  # the newest differences
     pairs: int = 0
 
     def add(self, w_rps: Float3, f_mps2: Float3) -> None:
@@ -52,25 +61,46 @@ class ImuNoiseMeter:
             return
         means = tuple(x / BLOCK_SAMPLES for x in s)
         prev = self._prev
-        if prev is not None:
+        self._blocks += 1
+        if prev is not None and self._blocks > EDGE_BLOCKS:
             d = [a - b for a, b in zip(means, prev, strict=True)]
-            self._sq_g += d[0] * d[0] + d[1] * d[1] + d[2] * d[2]
-            self._sq_a += d[3] * d[3] + d[4] * d[4] + d[5] * d[5]
-            self.pairs += 1
+            held = self._held
+            held.append(
+                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2], d[3] * d[3] + d[4] * d[4] + d[5] * d[5])
+            )
+            if len(held) > EDGE_BLOCKS:
+                sq_g, sq_a = held.popleft()
+                self._sq_g += sq_g
+                self._sq_a += sq_a
+                self.pairs += 1
         self._prev = means
         self._sums = [0.0] * 6
         self._n = 0
 
     def restart(self) -> None:
-        """The rest is over: the block under way and the chain of differences end."""
+        """The rest is over: the block under way, the chain of differences and its last
+        :data:`EDGE_BLOCKS` end."""
         self._sums = [0.0] * 6
         self._n = 0
         self._prev = None
+        self._blocks = 0
+        self._held.clear()
 
     def variance_scatter(self) -> float:
         """Relative 1-sigma of the measured variances (chi-square: sqrt(2 / n) for n squared
         differences), so a caller takes them over a model only where they are beyond it."""
         return math.sqrt(2.0 / (3.0 * self.pairs)) if self.pairs else math.inf
+
+    def excess(self, sigma_g_rps: float, sigma_a_mps2: float) -> tuple[float, float]:
+        """How many times the noise measured is a model's white noise per sample and axis
+        (gyro rad/s, accelerometer m/s^2), for each sensor: the ratio where the measured
+        variance is beyond the model's by more than three sigma of its own scatter (~45 %
+        after 3 s), else 1 (a sensor as the model says keeps the model's)."""
+        measured = self.sigma_per_sample()
+        if measured is None:
+            return 1.0, 1.0
+        k = math.sqrt(1.0 / (1.0 + 3.0 * self.variance_scatter()))
+        return max(1.0, k * measured[0] / sigma_g_rps), max(1.0, k * measured[1] / sigma_a_mps2)
 
     def sigma_per_sample(self) -> tuple[float, float] | None:
         """(gyro rad/s, accelerometer m/s^2) white noise 1-sigma per sample and axis, or None

@@ -701,25 +701,18 @@ class EkfEngine:
         """The white rate and acceleration noise the IMU showed at rest, where it is more
         than the config's (``[ekf] vibration_*``, :mod:`gateway.estimation.imu_noise`): the
         process noise of an installation on a rough engine. Set as the filter starts."""
-        measured = self._noise.sigma_per_sample()
-        if measured is None:
-            return tun
-        sig_g, sig_a = measured
-        # beyond the config's by more than three sigma of the measurement's own scatter
-        # (~45 % in variance after 3 s): a sensor as the config says keeps the config's
-        k = 1.0 / (1.0 + 3.0 * self._noise.variance_scatter())
         q_g, q_a = tun.q_gyro_rad2_per_s, tun.q_accel_m2_per_s3
-        q_g = max(q_g, k * sig_g * sig_g * self._imu_dt_s)
-        q_a = max(q_a, k * sig_a * sig_a * self._imu_dt_s)
-        if (q_g, q_a) == (tun.q_gyro_rad2_per_s, tun.q_accel_m2_per_s3):
+        dt = self._imu_dt_s
+        r_g, r_a = self._noise.excess(math.sqrt(q_g / dt), math.sqrt(q_a / dt))
+        if (r_g, r_a) == (1.0, 1.0):
             return tun
         log.info(
-            "IMU noise at rest %.2f deg/s and %.3f m/s^2 a sample (engine vibration included): "
-            "above [ekf] vibration_*, the filter's process noise raised to it",
-            math.degrees(sig_g),
-            sig_a,
+            "IMU noise at rest %.1f times (gyro) and %.1f times (accelerometer) [ekf]'s, "
+            "engine vibration included: the filter's process noise raised to it",
+            r_g,
+            r_a,
         )
-        tun = replace(tun, q_gyro_rad2_per_s=q_g, q_accel_m2_per_s3=q_a)
+        tun = replace(tun, q_gyro_rad2_per_s=q_g * r_g * r_g, q_accel_m2_per_s3=q_a * r_a * r_a)
         fix_q = self._q_c[FIX].copy()
         self._tuning, self._q_c = tun, process_noise_psd(tun)
         self._q_c[FIX] = fix_q
