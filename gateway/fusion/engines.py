@@ -21,7 +21,7 @@ def make_engine(
     settings = config.engine_settings()
     if isinstance(settings, EkfConfig):
         return EkfEngine(settings, clock, noise)
-    return ObserverEngine(settings, clock)
+    return ObserverEngine(settings, clock, noise)
 
 
 def epoch_clock(config: GatewayConfig) -> EpochClock:

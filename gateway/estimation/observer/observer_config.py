@@ -49,6 +49,12 @@ class ObserverConfig:
 
     # --- IMU noise (ADIS16334 datasheet): roll/pitch sigma, heading gain, bias at rest ---
     gyro_arw_deg_per_sqrt_h: float = 2.0  # gyro angular random walk
+    accel_vrw_mps_per_sqrt_h: float = 0.12  # accelerometer velocity random walk
+    # Engine vibration seen by the IMU (installation): broadband 1-sigma per sample, as
+    # [ekf]'s; the stated accuracy holds for it, and grows with the noise measured at rest
+    # where that is beyond it (gateway/estimation/imu_noise.py)
+    vibration_gyro_dps: float = 0.05
+    vibration_accel_mps2: float = 0.2
 
     # --- learning gates ---
     learning_fix_qualities: tuple[int, ...] = (2, 4, 5)  # GGA DGNSS, RTK fixed, RTK float
