@@ -19,7 +19,7 @@ from drivers.samples import FixQuality, GnssFix, ImuSample
 from gateway.config.gateway_config import Engine, load_config
 from gateway.demo.accuracy import cross_track_error_m, evaluate_spans
 from gateway.estimation.geodesy import lla_to_ned
-from gateway.estimation.gnss_error import fix_position_sigma_m
+from gateway.estimation.gnss_error import displacement_sigma_m, fix_position_sigma_m
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.observer.position_channel import PositionChannel
@@ -81,6 +81,25 @@ def _float_minute(channel: PositionChannel, residual_m: float) -> list[float]:
         channel.predict(0.1, 0.03 * 0.1)
         out.append(channel.update([residual_m, 0.0])[0])
     return out
+
+
+def test_a_displacement_between_two_fixes_has_their_white_noise_and_what_wander_is_left() -> None:
+    """Two RTK fixes (2 cm, 30 % of it white) 1 s apart: their difference is the white parts
+    and the little the 60 s wander moved (0.9 cm, against 2.8 cm for independent errors), as
+    a simulated white + Gauss-Markov error gives it; fixes of different kinds share nothing."""
+    sigma, share, tau = 0.02, 0.3, 60.0
+    got = displacement_sigma_m(sigma, sigma, 1.0, share, tau)
+    rng = np.random.default_rng(3)
+    n, rho = 200_000, math.exp(-1.0 / tau)
+    white, wander = share * sigma, math.sqrt(1.0 - share * share) * sigma
+    w0 = wander * rng.standard_normal(n)
+    w1 = rho * w0 + math.sqrt(1.0 - rho * rho) * wander * rng.standard_normal(n)
+    d = (w1 + white * rng.standard_normal(n)) - (w0 + white * rng.standard_normal(n))
+    assert got == pytest.approx(float(np.std(d)), rel=0.02)
+    assert 0.008 < got < 0.010
+    assert displacement_sigma_m(sigma, 0.3, 1.0, share, None) == pytest.approx(
+        math.hypot(sigma, 0.3)
+    )
 
 
 def test_a_float_minute_is_not_averaged_away_and_fixed_takes_over_at_once() -> None:

@@ -9,6 +9,8 @@ fixes to sigma^2 / N, believe it, and follow the wander.
 
 from __future__ import annotations
 
+import math
+
 from drivers.samples import CORRECTED_QUALITIES, DEFAULT_GNSS_SIGMAS, GnssFix
 
 #: HDOP the quality's default sigmas (no GST) describe; a larger HDOP scales them up.
@@ -58,3 +60,22 @@ def split_fix_variance(sigma_m: float, white_share: float) -> tuple[float, float
     s2 = sigma_m * sigma_m
     w2 = white_share * white_share
     return w2 * s2, (1.0 - w2) * s2
+
+
+def displacement_sigma_m(
+    sigma_a_m: float,
+    sigma_b_m: float,
+    dt_s: float,
+    white_share: float,
+    correlation_s: float | None,
+) -> float:
+    """1-sigma of the difference of two fixes' positions on one axis, ``dt_s`` apart: their
+    white parts add, their wanders (:func:`split_fix_variance`) cancel as far as they are
+    still correlated (exp(-dt / ``correlation_s``); None: two solutions of different kinds,
+    no common wander). An RTK position moves by a few mm from one epoch to the next however
+    far it is off."""
+    white_a, wander_a = split_fix_variance(sigma_a_m, white_share)
+    white_b, wander_b = split_fix_variance(sigma_b_m, white_share)
+    rho = 0.0 if correlation_s is None else math.exp(-dt_s / correlation_s)
+    var = white_a + white_b + wander_a + wander_b - 2.0 * rho * math.sqrt(wander_a * wander_b)
+    return math.sqrt(max(var, 0.0))

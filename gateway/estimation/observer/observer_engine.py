@@ -46,6 +46,7 @@ from gateway.estimation.engine_base import (
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import (
+    displacement_sigma_m,
     fix_position_sigma_m,
     fix_velocity_ne_mps,
     fix_velocity_sigma_mps,
@@ -206,7 +207,8 @@ class ObserverEngine:
         self._forward_known = False  # ... beyond what a tilt error could make of it
         self._held_forward: bool | None = None  # ... under a held course, since the last stop
         self._direction_pending = False  # ... not found yet: the epoch gives no velocity
-        self._stop_ne_m: tuple[float, float] | None = None  # reference point where it stopped
+        # reference point at the last still epoch, N and E, m: the fix's 1-sigma, time, quality
+        self._stop_ne_m: tuple[float, float, float, float, int] | None = None
         self._t_velocity_s: float | None = None  # last epoch that gave a velocity
         self._zero_rate_start: _Row | None = None  # history row where the rest window began
         self._prev_rest_row: _Row | None = None  # newest row when last levelled at rest
@@ -740,14 +742,15 @@ class ObserverEngine:
 
         Faster, the direction is the one found since that stop (a wheeled vehicle reverses
         only through one): from the reference point's displacement since it, once beyond
-        :data:`DIRECTION_SIGMAS` of two fixes' noise (a few cm with RTK), or from that
-        velocity, once beyond those sigmas of the fix's velocity noise and of the drift the
-        tilt puts into it since the last epoch that gave one. Until then the epoch gives no
-        velocity. Why: a pull-away's first epochs carry a few cm/s (the stop's last epoch
-        set the velocity to zero), while the mast's rocking and the engine's vibration put
-        0.02 m/s into the antenna's velocity; the sign of that noise, taken as reversing,
-        held itself (the epoch's velocity is the next one's start): pitch 1.3 deg off with
-        0.15 stated as field seed 95 drove off at three times the simulator's vibration.
+        :data:`DIRECTION_SIGMAS` of the two fixes' noise (:func:`displacement_sigma_m`: a
+        few cm with RTK), or from that velocity, once beyond those sigmas of the fix's
+        velocity noise and of the drift the tilt puts into it since the last epoch that gave
+        one. Until then the epoch gives no velocity. Why: a pull-away's first epochs carry a
+        few cm/s (the stop's last epoch set the velocity to zero), while the mast's rocking
+        and the engine's vibration put 0.02 m/s into the antenna's velocity; the sign of
+        that noise, taken as reversing, held itself (the epoch's velocity is the next one's
+        start): pitch 1.3 deg off with 0.15 stated as field seed 95 drove off at three times
+        the simulator's vibration.
 
         Before the heading is known, a receiver that has not moved yet gives SOG only: a
         speed below ``stationary_speed_mps`` is then zero velocity (the tilt loop still
@@ -777,18 +780,26 @@ class ObserverEngine:
         since_s = 0.0 if self._t_velocity_s is None else max(0.0, t_e - self._t_velocity_s)
         sigma_u = math.hypot(sigma, GRAVITY_MPS2 * self._sigma_tilt_rad(0.0) * since_s)
         p_ref = self._reference_ne_m(fix, c_e)
+        sigma_p = self._fix_sigma_m(fix)[0]
         if abs(u_ant) < DIRECTION_SIGMAS * sigma and sog < cfg.stationary_speed_mps:
-            if self._held_forward is not None or self._stop_ne_m is None:
-                self._stop_ne_m = p_ref
+            # the latest still epoch's: the stop's first may be the braking's last cm
+            if p_ref is not None:
+                self._stop_ne_m = (p_ref[0], p_ref[1], sigma_p, t_e, int(fix.quality))
             self._held_forward = None
             self._t_velocity_s = t_e
             vn, ve, _ = lever_arm_velocity_ned(c_e, w_lever, self._l_ant_f)
             return (vn, ve, 0.0)
         moved_x = None
         if p_ref is not None and self._stop_ne_m is not None:
-            dn, de = p_ref[0] - self._stop_ne_m[0], p_ref[1] - self._stop_ne_m[1]
-            moved_x = along_body_x(dn, de, c_e)
-            sigma_x = math.sqrt(2.0) * self._fix_sigma_m(fix)[0]
+            stop_n, stop_e, sigma_stop, t_stop, quality = self._stop_ne_m
+            moved_x = along_body_x(p_ref[0] - stop_n, p_ref[1] - stop_e, c_e)
+            sigma_x = displacement_sigma_m(
+                sigma_stop,
+                sigma_p,
+                t_e - t_stop,
+                cfg.gnss_white_share,
+                cfg.gnss_error_correlation_s if quality == int(fix.quality) else None,
+            )
             if abs(moved_x) < DIRECTION_SIGMAS * sigma_x:
                 moved_x = None
         if moved_x is not None and self._held_forward is None:
