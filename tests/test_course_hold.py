@@ -60,19 +60,25 @@ def test_reversing_out_of_a_stop_under_a_held_course_leaves_no_tilt(
 ) -> None:
     """From the braking on, through the stop and the reversing start: tilt within 0.05 deg
     and the heading within 0.2 deg, whether the receiver holds its course or gives none
-    (``blank``). The observer was 0.98 deg off with the course held below 0.5 m/s (0.44
-    below 0.3) as it reversed; it is 0.04 now, from the stop's last epoch, whose 0.05 m/s
-    is within 3 sigma of zero and taken as still. With the course blanked below 0.5 m/s it
-    had no velocity there (the tilt loop open, learning held off): 0.07 deg."""
+    (``blank``), but for the reversing start's first second: within 0.16 deg there. The
+    observer was 0.98 deg off with the course held below 0.5 m/s (0.44 below 0.3) as it
+    reversed, and 0.07 with the course blanked (no velocity below 0.5 m/s, the tilt loop
+    open, learning held off).
+
+    The start's first 0.3 s (under ``stationary_speed_mps``) are taken as still, the next
+    epoch gives no velocity (the displacement since the stop, 2.4 cm, is not yet beyond
+    its noise), and the one after takes the 0.09 m/s back: 0.09 / (g tau) = 0.13 deg
+    meanwhile (0.15). A 2 s stop is too short for the stop's mean to level the platform
+    (its noise, 0.18 deg after the first 0.2 s), which had hidden that on exact motion."""
     out = _run(name, hold_below_mps, blank)
-    after = [s for t, s in out if t > BRAKING_S]
+    after = [(t, s) for t, s in out if t > BRAKING_S]
     assert after
-    for sol in after:
+    for t, sol in after:
         assert sol.roll_rad is not None and sol.pitch_rad is not None and sol.yaw_rad is not None
         tilt_deg = math.degrees(max(abs(sol.roll_rad - ROLL), abs(sol.pitch_rad - PITCH)))
-        assert tilt_deg < 0.05, (sol.t, tilt_deg)
+        assert tilt_deg < (0.16 if REVERSING_S <= t <= REVERSING_S + 1.0 else 0.05), (t, tilt_deg)
         assert math.degrees(abs(wrap_pi(sol.yaw_rad - YAW0))) < 0.2
-    assert any(t > REVERSING_S for t, _ in out)
+    assert any(t > REVERSING_S for t, _ in after)
 
 
 #: Driving off at 2 m/s, braking to a stop, then eight stops of 3 s, each left with a

@@ -676,8 +676,9 @@ class ObserverEngine:
 
     def _noise_as_measured(self) -> None:
         """The IMU's white noise as measured at rest (:mod:`gateway.estimation.imu_noise`),
-        where it is beyond the config's datasheet figures and ``vibration_*``: the gyro's
-        ARW in the stated tilt, its coast drift and the zero-rate update, and the residual
+        where it is beyond the config's datasheet figures and ``vibration_*``, else those:
+        the gyro's ARW in the stated tilt, its coast drift, the zero-rate update and the
+        stop's rotation test, the accelerometer's noise in the stop's mean, and the residual
         bias floors in proportion to the larger of the two excesses (a linear observer's
         steady-state error is in proportion to the noise that drives it). Three times the
         simulator's vibration left the accelerometer x bias 0.03 m/s^2 off after a turn,
@@ -685,9 +686,9 @@ class ObserverEngine:
         cfg, dt = self.cfg, self._imu_dt_s
         arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         vrw = cfg.accel_vrw_mps_per_sqrt_h / SQRT_SECONDS_PER_HOUR
+        sigma_a = math.hypot(vrw / math.sqrt(dt), cfg.vibration_accel_mps2)  # a sample
         r_g, r_a = self._noise.excess(
-            math.hypot(arw / math.sqrt(dt), cfg.vibration_gyro_dps * DEG_TO_RAD),
-            math.hypot(vrw / math.sqrt(dt), cfg.vibration_accel_mps2),
+            math.hypot(arw / math.sqrt(dt), cfg.vibration_gyro_dps * DEG_TO_RAD), sigma_a
         )
         if self._floor_scale == 1.0 < max(r_g, r_a):  # once: it refines at every rest
             log.info(
@@ -699,6 +700,7 @@ class ObserverEngine:
         self._gyro_arw = arw * r_g
         self._arw_tilt_var = self._gyro_arw**2 * cfg.tau_s / 2.0
         self._floor_scale = max(r_g, r_a)
+        self._rest.set_noise(self._gyro_arw, (sigma_a * r_a) ** 2 * dt)
 
     def _observe_gyro_bias_at_rest(self, w_res_rps: tuple[float, float], d_s: float) -> None:
         """At rest the mean bias-corrected body rate x/y over ``d_s`` is the gyro bias error
