@@ -245,11 +245,12 @@ class ObserverEngine:
             return
         w, f = sample.w_ib_b, sample.f_ib_b
         self._t_s = t
-        self._imu_dt_s = dt
-        if self._stationary:
+        if self._stationary:  # the sample period is needed only where the noise is taken
+            self._imu_dt_s = dt
             self._noise.add(w, f)
         obs = self._observer
         if obs is None:
+            self._imu_dt_s = dt
             self._align_tilt(t, w, f)
             return
         if self._control_until_s is not None and t > self._control_until_s:
