@@ -115,3 +115,33 @@ def test_on_a_first_straight_the_ekf_states_the_roll_it_cannot_tell_from_the_y_b
         ratios.append(abs(sol.roll_rad - roll_true) / sol.sigma_tilt_rad)
     assert len(ratios) > 100
     assert max(ratios) < 2.5, max(ratios)
+
+
+@pytest.mark.parametrize("engine", list(Engine))
+def test_a_paper_sized_accelerometer_bias_is_within_the_stated_accuracy_from_the_start(
+    engine: Engine,
+) -> None:
+    """Seed 000's example, an accelerometer y bias of 0.2 m/s^2 (a unit not nulled at
+    installation; the paper's own had 0.11 on x): until the heading changes it is roll,
+    1.2 deg of it. The EKF's P0 has the simulator's 5 mg, and stated 0.30 deg, at rest and
+    on the straight (field seed 1 with it: 1094 frames beyond 0.1 deg + 3 sigma); the stated
+    accuracy now covers `accel_bias_sigma_covered_mps2` (0.1 m/s^2, the observer's figure)
+    until the filter has observed the bias. Every roll sent, from the levelling at rest on,
+    within 3 stated sigmas."""
+    drive = Motion([Segment(15.0), Segment(5.0, accel_mps2=0.6), Segment(40.0)], yaw0_rad=0.0)
+    cfg = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=(0.3, 0.0, -3.0)))
+    cfg = cfg.with_engine(engine)
+    c_bn = state_at(drive, 0.0).c_bn[0]
+    roll_true = math.atan2(c_bn[2, 1], c_bn[2, 2])
+    imu = imu_stream(drive, bias_a_mps2=(0.0, 0.2, 0.0), noise_a_mps2=0.02, seed=4)
+    fixes = gnss_stream(drive, antenna_lever_arm_m=cfg.vehicle.antenna_lever_arm_m)
+    engine_ = make_engine(cfg)
+    ratios = []
+    for k, _ in fed(engine_, imu, fixes):
+        sol = engine_.solution()
+        if k % 50 or sol.roll_rad is None or sol.mode in (Mode.DEGRADED, Mode.FAULT):
+            continue
+        assert sol.sigma_tilt_rad is not None
+        ratios.append(abs(sol.roll_rad - roll_true) / sol.sigma_tilt_rad)
+    assert len(ratios) > 200
+    assert max(ratios) < 3.0, max(ratios)
