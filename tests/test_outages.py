@@ -715,3 +715,54 @@ def test_restarted_in_an_outage_while_speeding_up_the_tilt_is_not_taken_for_leve
             assert error_deg <= 0.1 + 3.0 * sigma, (t, error_deg, sigma)
         checked += 1
     assert checked > 100  # sent again once GNSS is back, at the latest
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+@pytest.mark.parametrize("drive_off_mps2", [0.15, -0.15])
+def test_restarted_while_braking_a_short_stop_then_a_gentle_start_keeps_the_heading(
+    tmp_path: Path, engine: Engine, drive_off_mps2: float
+) -> None:
+    """The IMU stalls 1.3 s while the vehicle brakes out of a reversing manoeuvre; the new
+    engine levels on the decelerating window (3 deg), the vehicle stands 1 s (too short to
+    level on) and drives off gently, forward or reversing. The tilt left reads as more
+    acceleration than there is, and the observer aligned its heading 180 deg off driving
+    forward. The core now hands the last engine's heading over (within 29 deg/s times the
+    gap, :mod:`gateway.estimation.heading_hint`), and it decides the direction: every
+    heading sent after the restart within 1 deg of the truth, the attitude within 0.1 deg +
+    3 stated sigmas."""
+    drive = Motion(
+        [Segment(10.0), Segment(5.0, accel_mps2=0.6), Segment(10.0), Segment(5.0, accel_mps2=-0.6),
+         Segment(2.0), Segment(3.0, accel_mps2=-0.5), Segment(3.0, accel_mps2=0.5),
+         Segment(1.0), Segment(12.0, accel_mps2=drive_off_mps2), Segment(10.0)],
+        yaw0_rad=1.0, roll_rad=math.radians(6.0), pitch_rad=math.radians(4.0),
+    )  # fmt: skip
+    stall = (35.5, 36.8)  # braking from -1.5 m/s to a stop at 38 s
+    imu = [
+        s
+        for s in imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01)
+        if not stall[0] <= motion_time(s.t) < stall[1]
+    ]
+    fixes = gnss_stream(drive, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    log = tmp_path / "out.log"
+    core = run(log, engine, imu, fixes)
+    assert core.stats.engine_restarts == 1
+    sigmas = stated_sigma_deg(log)
+    times = [t for t, _ in sigmas]
+    headings = 0
+    for m in decode_log(log):
+        t = motion_time(m.t)
+        if t < stall[1]:
+            continue
+        if m.id == "vesselHeading" and m.fields.get("heading") is not None:
+            error = wrap_pi(float(m.fields["heading"]) - 1.0)  # type: ignore[arg-type]
+            assert abs(math.degrees(error)) < 1.0, (t, math.degrees(error))
+            headings += 1
+        elif m.id == "attitude" and m.fields.get("roll") is not None:
+            sigma = sigmas[bisect.bisect_right(times, m.t) - 1][1]
+            assert sigma is not None
+            c_bn = state_at(drive, t).c_bn[0]
+            true = (math.atan2(c_bn[2, 1], c_bn[2, 2]), -math.asin(c_bn[2, 0]))
+            for est, ref in zip((m.fields["roll"], m.fields["pitch"]), true, strict=True):
+                error_deg = abs(math.degrees(float(est) - ref))  # type: ignore[arg-type]
+                assert error_deg <= 0.1 + 3.0 * sigma, (t, error_deg, sigma)
+    assert headings > 50  # aligned again within the drive-off

@@ -18,6 +18,7 @@ import pytest
 from drivers.logs.candump import CandumpWriter, read_candump
 from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
 from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.solution import LearnedState, Mode, Solution
 from gateway.fusion.fusion_core import FusionCore
 from gateway.fusion.output_guard import GuardLimits, OutputGuard, Withheld
@@ -58,6 +59,9 @@ class ScriptedEngine:
 
     def moving_before(self) -> None:
         return None  # scripted: no levelling to tell
+
+    def heading_before(self, hint: HeadingHint) -> None:
+        return None  # scripted: no heading to find
 
     def solution(self) -> Solution:
         s = self.t - T0

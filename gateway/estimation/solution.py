@@ -13,6 +13,7 @@ from itertools import product
 from typing import Protocol
 
 from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
+from gateway.estimation.heading_hint import HeadingHint
 
 
 class Mode(IntEnum):
@@ -219,3 +220,7 @@ class LearningEstimator(Estimator, Protocol):
         """The engine takes over from one that saw the vehicle moving (a restart after an
         IMU gap): without GNSS velocity (an outage) its levelling window is of unknown
         motion, not a parked vehicle's."""
+
+    def heading_before(self, hint: HeadingHint) -> None:
+        """The engine takes over from one that knew the heading (a restart after an IMU gap):
+        ``hint`` decides forward or reversing at its first course over ground."""

@@ -54,6 +54,7 @@ import can
 
 from drivers.samples import GnssFix, ImuAux, ImuCounters, ImuSample
 from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.solution import LearnedState, LearningEstimator, Mode, Solution
 from gateway.fusion.engines import epoch_clock, make_engine
@@ -328,12 +329,16 @@ class FusionCore:
         if self._make_engine is None:
             return
         learned = self.engine.learned_state()
-        moving = not self.engine.solution().stationary
+        old = self.engine.solution()
         self.engine = self._make_engine()
         if learned is not None:
             self.engine.seed(learned)
-        if moving:
+        if not old.stationary:
             self.engine.moving_before()
+        if last is not None and old.yaw_rad is not None:
+            hint = HeadingHint.over_gap(old.yaw_rad, old.yaw_rate_rps or 0.0, t - last.t)
+            if hint is not None:
+                self.engine.heading_before(hint)
         self.guard.forget_track()
         self.stats.engine_restarts += 1
         if last is not None:

@@ -94,6 +94,7 @@ from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
 from gateway.estimation.gnss_track import GnssTrack
+from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
@@ -227,6 +228,7 @@ class EkfEngine:
         # a warm start (:meth:`seed`): the biases' prior and its variance per axis (the gyro's
         # combined with the rest mean when there is one); None: the turn-on sigmas
         self._seed: LearnedState | None = None
+        self._hint: HeadingHint | None = None  # the heading the last engine had, till aligned
         self._seed_var_g = np.zeros(3)
         self._rest_mean_g_rps: list[float] = []  # mean rate of the last window at rest
         self._t_rest_epoch_s: float | None = None  # last epoch at rest before alignment
@@ -251,6 +253,8 @@ class EkfEngine:
             self._align_tilt(t, w, f, dt)
         ins = self._ins
         if ins is None:
+            if self._hint is not None:
+                self._hint.turn(w[2], dt)
             return
         ins.propagate(w, f, dt)
         assert self._hist is not None
@@ -404,6 +408,10 @@ class EkfEngine:
         """The vehicle was moving when this engine took over: see the protocol (and no rest
         window without a fix that says the vehicle stands)."""
         self._win_motion.moving_before = True
+
+    def heading_before(self, hint: HeadingHint) -> None:
+        """The heading the engine this one replaces had: see the protocol."""
+        self._hint = hint
 
     def seed(self, learned: LearnedState, f_rest_b_mps2: Float3 | None = None) -> bool:
         """Start from learned biases (a warm start, or the engine this one replaces after an
@@ -653,7 +661,7 @@ class EkfEngine:
         elif vel is not None and math.hypot(*vel) >= self.cfg.align_min_speed_mps:
             w_e = self._lever_rate(t_e)[0]
             target = heading_from_antenna_course(
-                vel, row[ROW_C], w_e, self._l_ant_b, self._forward_since_rest(row)
+                vel, row[ROW_C], w_e, self._l_ant_b, self._forward_at(vel, row, w_e)
             )
             sig_yaw = self.cfg.align_yaw_sigma_deg * DEG_TO_RAD
         else:
@@ -663,6 +671,7 @@ class EkfEngine:
         c_e = row[ROW_C].reshape(3, 3)
         rot = exp_so3((0.0, 0.0, target - math.atan2(c_e[1, 0], c_e[0, 0])))
         ins.rotate(rot)
+        self._hint = None
         hist.shift(np.zeros(3), np.zeros(3), to_mat9(rot))
         row_aligned = hist.at(t_e)
         assert row_aligned is not None
@@ -717,6 +726,17 @@ class EkfEngine:
         self._tuning, self._q_c = tun, process_noise_psd(tun)
         self._q_c[FIX] = fix_q
         return tun
+
+    def _forward_at(self, vel_ne_mps: tuple[float, float], row: Array, w_e: Array) -> bool:
+        """Driving forward at ``row``, the antenna moving at ``vel_ne_mps``: as the heading
+        the last engine had says, after a restart (:mod:`gateway.estimation.heading_hint`:
+        it outranks the velocity change, which a tilt left by levelling while braking turns
+        round), else :meth:`_forward_since_rest`."""
+        if self._hint is None:
+            return self._forward_since_rest(row)
+        c = row[ROW_C]
+        if_forward = heading_from_antenna_course(vel_ne_mps, c, w_e, self._l_ant_b, True)
+        return self._hint.forward(if_forward, math.atan2(c[3], c[0]))
 
     def _forward_since_rest(self, row: Array) -> bool:
         """Driving forward at ``row``: its INS velocity against that of the last epoch at

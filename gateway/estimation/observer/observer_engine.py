@@ -52,6 +52,7 @@ from gateway.estimation.gnss_error import (
     fix_velocity_sigma_mps,
 )
 from gateway.estimation.gnss_track import GnssTrack
+from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
@@ -234,6 +235,7 @@ class ObserverEngine:
         self._log = LogLimiter(log)
         self._track = GnssTrack()  # the receiver's own track: glitch or engine off?
         self._seed: LearnedState | None = None  # what a warm start gave (:meth:`seed`)
+        self._hint: HeadingHint | None = None  # the heading the last engine had, till aligned
 
     # ======================================================================== prediction
 
@@ -251,6 +253,8 @@ class ObserverEngine:
         obs = self._observer
         if obs is None:
             self._imu_dt_s = dt
+            if self._hint is not None:
+                self._hint.turn(w[2], dt)
             self._align_tilt(t, w, f)
             return
         if self._control_until_s is not None and t > self._control_until_s:
@@ -387,6 +391,10 @@ class ObserverEngine:
         """The vehicle was moving when this engine took over: see the protocol."""
         self._align_motion.moving_before = True
 
+    def heading_before(self, hint: HeadingHint) -> None:
+        """The heading the engine this one replaces had: see the protocol."""
+        self._hint = hint
+
     def seed(self, learned: LearnedState, f_rest_b_mps2: Float3 | None = None) -> bool:
         """Start from learned biases (a warm start, or the engine this one replaces after an
         IMU gap): accepted until the observer begins to learn on its own (the learning
@@ -520,6 +528,7 @@ class ObserverEngine:
         self._hold_control(t_e)
         v_tilt, closed = (v_imu[0], v_imu[1]), self._heading_aligned or self._at_rest
         if not self._heading_aligned:
+            self._direction_from_hint(fix, v_ant, c_e, w_lever, row)
             along_x = self._velocity_along_body_x(fix, t_e, c_e, w_lever, row)
             if along_x is not None:
                 v_tilt, closed = along_x, True
@@ -928,6 +937,26 @@ class ObserverEngine:
         v_imu = velocity_at((vn, ve, 0.0), c_e, w_lever, self._l_ant_f, self._l_imu_f)
         return v_imu[0], v_imu[1]
 
+    def _direction_from_hint(
+        self, fix: GnssFix, v_ant: Float3, c_e: Mat9, w_lever: Float3, row: _Row
+    ) -> None:
+        """Before the heading is known, after a restart: forward or reversing from the
+        heading the last engine had (:mod:`gateway.estimation.heading_hint`), once the
+        course is the vehicle's (over ``course_hold_speed_mps``, not held from before a stop).
+        It outranks the velocity change along body x, which a tilt left by levelling while
+        braking turns round."""
+        hint = self._hint
+        if (
+            hint is None
+            or self._at_rest
+            or fix.sog_mps is None
+            or fix.sog_mps < self.cfg.course_hold_speed_mps
+        ):
+            return
+        if_forward = heading_from_antenna_course(v_ant, c_e, w_lever, self._l_ant_f, forward=True)
+        self._forward = hint.forward(if_forward, row[_PSI])
+        self._forward_known = True
+
     def _correct_tilt(
         self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row, closed: bool
     ) -> bool:
@@ -1099,6 +1128,7 @@ class ObserverEngine:
             # yaw at t_e is psi_e; move it onto the reference, keep the gyro motion since t_e
             obs.rotate_about_vertical(wrap_pi(target - row[_PSI]))
             self._heading_aligned = True
+            self._hint = None
             self._heading.aligned(sigma)
             self._heading.reversing = self._forward is False and hdt_rad is None
             return
