@@ -75,6 +75,34 @@ def run(
     return core
 
 
+def without(imu: list[ImuSample], gap: tuple[float, float]) -> list[ImuSample]:
+    """The samples outside ``gap`` (motion times, s): an IMU stall."""
+    return [s for s in imu if not gap[0] <= motion_time(s.t) < gap[1]]
+
+
+def attitude_within_stated(path: Path, drive: Motion, span: tuple[float, float]) -> int:
+    """Asserts every roll and pitch sent within ``span`` (motion times, s) within 0.1 deg +
+    3 sigmas of the NAVGW_STATUS before it; returns how many attitude frames had both."""
+    sigmas = stated_sigma_deg(path)
+    times = [t for t, _ in sigmas]
+    checked = 0
+    for m in decode_log(path):
+        t = motion_time(m.t)
+        if m.id != "attitude" or not span[0] <= t < span[1]:
+            continue
+        if m.fields.get("roll") is None or m.fields.get("pitch") is None:
+            continue
+        sigma = sigmas[bisect.bisect_right(times, m.t) - 1][1]
+        assert sigma is not None
+        c_bn = state_at(drive, t).c_bn[0]
+        true = (math.atan2(c_bn[2, 1], c_bn[2, 2]), -math.asin(c_bn[2, 0]))
+        for est, ref in zip((m.fields["roll"], m.fields["pitch"]), true, strict=True):
+            error_deg = abs(math.degrees(float(est) - ref))  # type: ignore[arg-type]
+            assert error_deg <= 0.1 + 3.0 * sigma, (t, error_deg, sigma)
+        checked += 1
+    return checked
+
+
 def tilt_rad(m: Decoded) -> float:
     """The larger of |roll| and |pitch| of a decoded attitude message."""
     roll, pitch = m.fields["roll"], m.fields["pitch"]
@@ -96,11 +124,7 @@ def test_a_silent_imu_is_a_fault_on_the_bus_then_the_engine_restarts(
     tmp_path: Path, engine: Engine
 ) -> None:
     silent = (60.0, 90.0)
-    imu = [
-        s
-        for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
-        if not silent[0] <= motion_time(s.t) < silent[1]
-    ]
+    imu = without(imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01), silent)
     fixes = gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
     log = tmp_path / "out.log"
     core = run(log, engine, imu, fixes)
@@ -236,11 +260,7 @@ def test_levelled_while_speeding_up_no_tilt_goes_out_until_it_is_known(
     pulled away (0.6 m/s^2, 3.5 deg of apparent pitch) and levelled on that window. Roll and
     pitch then went out 3.5 deg off; now they wait until the tilt loop has corrected them."""
     silent = (8.5, 10.5)  # the restart levels on 10.5-11.5 s, inside the 10-15 s pull-away
-    imu = [
-        s
-        for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
-        if not silent[0] <= motion_time(s.t) < silent[1]
-    ]
+    imu = without(imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01), silent)
     fixes = gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
     log = tmp_path / "out.log"
     core = run(log, engine, imu, fixes)
@@ -264,11 +284,7 @@ def test_a_restart_on_a_loaded_host_keeps_the_epoch_clock(tmp_path: Path, engine
     epoch 1.2 s late (metres along track); the core's one clock remembers the host follows
     UTC."""
     silent = (40.0, 42.0)  # on the straight: the engine aligns at once, then navigates
-    imu = [
-        s
-        for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
-        if not silent[0] <= motion_time(s.t) < silent[1]
-    ]
+    imu = without(imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01), silent)
     fixes = [
         dataclasses.replace(f, t=f.t + 1.2)
         if silent[1] <= motion_time(f.t) < silent[1] + 3.0
@@ -296,11 +312,7 @@ def test_a_new_mode_goes_out_with_the_first_frame_sent_in_it(tmp_path: Path) -> 
     of the new mode up to 0.1 s late (the issue's demo under load: a pitch 4 deg off 0.27 s
     after the last STATUS, which said FAULT)."""
     hole = (70.02, 70.08)
-    imu = [
-        s
-        for s in imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
-        if not hole[0] <= motion_time(s.t) < hole[1]
-    ]
+    imu = without(imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01), hole)
     log = tmp_path / "out.log"
     run(log, Engine.OBSERVER, imu, gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07))
     frames = [(motion_time(f.timestamp), f) for f in read_candump(log)]
@@ -335,11 +347,7 @@ def test_started_and_restarted_on_the_move_what_goes_out_is_where_the_vehicle_is
     of 1.7 deg/s in an 11 deg/s turn: its rate low-pass started from zero. Before the heading
     is known (parked after a cold start too) no position goes out; after, every position,
     and every rate of turn, is where the vehicle is, unless STATUS says DEGRADED or FAULT."""
-    imu = [
-        s
-        for s in imu_stream(TURNING, noise_g_rps=1e-4, noise_a_mps2=0.01)
-        if not silent[0] <= motion_time(s.t) < silent[1]
-    ]
+    imu = without(imu_stream(TURNING, noise_g_rps=1e-4, noise_a_mps2=0.01), silent)
     log = tmp_path / "out.log"
     core = run(log, engine, imu, gnss_stream(TURNING, antenna_lever_arm_m=LEVER, latency_s=0.07))
     assert core.stats.engine_restarts == 1
@@ -684,11 +692,7 @@ def test_restarted_in_an_outage_while_speeding_up_the_tilt_is_not_taken_for_leve
         yaw0_rad=1.0,
     )  # fmt: skip
     outage, stall = (45.0, 70.0), (52.5, 54.0)  # the stall ends 1 s before the speeding up
-    imu = [
-        s
-        for s in imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01)
-        if not stall[0] <= motion_time(s.t) < stall[1]
-    ]
+    imu = without(imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01), stall)
     fixes = [
         f
         for f in gnss_stream(drive, antenna_lever_arm_m=LEVER, latency_s=0.07)
@@ -697,23 +701,7 @@ def test_restarted_in_an_outage_while_speeding_up_the_tilt_is_not_taken_for_leve
     log = tmp_path / "out.log"
     core = run(log, engine, imu, fixes)
     assert core.stats.engine_restarts == 1
-    sigmas = stated_sigma_deg(log)
-    times = [t for t, _ in sigmas]
-    checked = 0
-    for m in decode_log(log):
-        t = motion_time(m.t)
-        if m.id != "attitude" or not stall[1] <= t < outage[1] + 10.0:
-            continue
-        if m.fields.get("roll") is None or m.fields.get("pitch") is None:
-            continue
-        sigma = sigmas[bisect.bisect_right(times, m.t) - 1][1]
-        assert sigma is not None
-        c_bn = state_at(drive, t).c_bn[0]
-        true = (math.atan2(c_bn[2, 1], c_bn[2, 2]), -math.asin(c_bn[2, 0]))
-        for est, ref in zip((m.fields["roll"], m.fields["pitch"]), true, strict=True):
-            error_deg = abs(math.degrees(float(est) - ref))  # type: ignore[arg-type]
-            assert error_deg <= 0.1 + 3.0 * sigma, (t, error_deg, sigma)
-        checked += 1
+    checked = attitude_within_stated(log, drive, (stall[1], outage[1] + 10.0))
     assert checked > 100  # sent again once GNSS is back, at the latest
 
 
@@ -737,32 +725,17 @@ def test_restarted_while_braking_a_short_stop_then_a_gentle_start_keeps_the_head
         yaw0_rad=1.0, roll_rad=math.radians(6.0), pitch_rad=math.radians(4.0),
     )  # fmt: skip
     stall = (35.5, 36.8)  # braking from -1.5 m/s to a stop at 38 s
-    imu = [
-        s
-        for s in imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01)
-        if not stall[0] <= motion_time(s.t) < stall[1]
-    ]
+    imu = without(imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01), stall)
     fixes = gnss_stream(drive, antenna_lever_arm_m=LEVER, latency_s=0.07)
     log = tmp_path / "out.log"
     core = run(log, engine, imu, fixes)
     assert core.stats.engine_restarts == 1
-    sigmas = stated_sigma_deg(log)
-    times = [t for t, _ in sigmas]
+    assert attitude_within_stated(log, drive, (stall[1], math.inf)) > 100
     headings = 0
     for m in decode_log(log):
         t = motion_time(m.t)
-        if t < stall[1]:
-            continue
-        if m.id == "vesselHeading" and m.fields.get("heading") is not None:
+        if t >= stall[1] and m.id == "vesselHeading" and m.fields.get("heading") is not None:
             error = wrap_pi(float(m.fields["heading"]) - 1.0)  # type: ignore[arg-type]
             assert abs(math.degrees(error)) < 1.0, (t, math.degrees(error))
             headings += 1
-        elif m.id == "attitude" and m.fields.get("roll") is not None:
-            sigma = sigmas[bisect.bisect_right(times, m.t) - 1][1]
-            assert sigma is not None
-            c_bn = state_at(drive, t).c_bn[0]
-            true = (math.atan2(c_bn[2, 1], c_bn[2, 2]), -math.asin(c_bn[2, 0]))
-            for est, ref in zip((m.fields["roll"], m.fields["pitch"]), true, strict=True):
-                error_deg = abs(math.degrees(float(est) - ref))  # type: ignore[arg-type]
-                assert error_deg <= 0.1 + 3.0 * sigma, (t, error_deg, sigma)
     assert headings > 50  # aligned again within the drive-off
