@@ -739,3 +739,34 @@ def test_restarted_while_braking_a_short_stop_then_a_gentle_start_keeps_the_head
             assert abs(math.degrees(error)) < 1.0, (t, math.degrees(error))
             headings += 1
     assert headings > 50  # aligned again within the drive-off
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_restarted_while_reversing_the_heading_stays_the_right_way_round(
+    tmp_path: Path, engine: Engine
+) -> None:
+    """The IMU stalls 1.3 s in a long reverse at 2 m/s: the new engine never sees the
+    vehicle stop before its first course, so it had no velocity change since a rest to tell
+    the direction by and took the course as a forward drive's. Both engines sent the heading
+    180 deg off, NAVIGATING, for the rest of the reverse (the EKF then rejected and reset
+    its position). With the last engine's heading handed over: within 1 deg throughout."""
+    drive = Motion(
+        [Segment(10.0), Segment(5.0, accel_mps2=0.6), Segment(10.0), Segment(5.0, accel_mps2=-0.6),
+         Segment(2.0), Segment(4.0, accel_mps2=-0.5), Segment(25.0), Segment(4.0, accel_mps2=0.5),
+         Segment(5.0)],
+        yaw0_rad=1.0,
+    )  # fmt: skip
+    stall = (40.0, 41.3)
+    imu = without(imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01), stall)
+    log = tmp_path / "out.log"
+    core = run(log, engine, imu, gnss_stream(drive, antenna_lever_arm_m=LEVER, latency_s=0.07))
+    assert core.stats.engine_restarts == 1
+    errors = [
+        abs(math.degrees(wrap_pi(float(m.fields["heading"]) - 1.0)))  # type: ignore[arg-type]
+        for m in decode_log(log)
+        if m.id == "vesselHeading"
+        and m.fields.get("heading") is not None
+        and motion_time(m.t) >= stall[1]
+    ]
+    assert len(errors) > 100  # aligned again while still reversing
+    assert max(errors) < 1.0
