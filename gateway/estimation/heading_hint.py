@@ -37,9 +37,10 @@ class HeadingHint:
     @classmethod
     def over_gap(cls, yaw_rad: float, yaw_rate_rps: float, gap_s: float) -> HeadingHint | None:
         """The old engine's heading and rate at its last sample, ``gap_s`` before the new
-        engine's first; None when the vehicle may have turned too far in between."""
+        engine's first; None when the vehicle may have turned too far in between, or the
+        clock stepped back (a negative gap says nothing of the time between)."""
         bound = MAX_YAW_RATE_RPS * gap_s
-        if bound > MAX_BOUND_RAD:
+        if not 0.0 <= bound <= MAX_BOUND_RAD:
             return None
         return cls(yaw_rad + yaw_rate_rps * gap_s, bound)
 
