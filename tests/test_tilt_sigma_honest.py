@@ -135,10 +135,10 @@ def test_a_paper_sized_accelerometer_bias_is_within_the_stated_accuracy_from_the
     roll_true = math.atan2(c_bn[2, 1], c_bn[2, 2])
     imu = imu_stream(drive, bias_a_mps2=(0.0, 0.2, 0.0), noise_a_mps2=0.02, seed=4)
     fixes = gnss_stream(drive, antenna_lever_arm_m=cfg.vehicle.antenna_lever_arm_m)
-    engine_ = make_engine(cfg)
+    estimator = make_engine(cfg)
     ratios = []
-    for k, _ in fed(engine_, imu, fixes):
-        sol = engine_.solution()
+    for k, _ in fed(estimator, imu, fixes):
+        sol = estimator.solution()
         if k % 50 or sol.roll_rad is None or sol.mode in (Mode.DEGRADED, Mode.FAULT):
             continue
         assert sol.sigma_tilt_rad is not None

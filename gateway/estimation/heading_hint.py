@@ -6,9 +6,11 @@ at power-up: forward or reversing is what its own velocity change along body x s
 stop too short to level on (under ~2 s), a start gentler than the tilt error left by the
 levelling (g theta > a) reads the other way round, and the heading aligned 180 deg off (the
 observer: a levelling while braking out of a reversing manoeuvre, 1 s still, 0.15 m/s^2
-forward). The old engine knew the heading; over the gap the vehicle turns at most
-:data:`MAX_YAW_RATE_RPS`, and after it the new engine's gyro carries that heading on.
-Within :data:`MAX_BOUND_RAD` it decides the direction (the boundary is 90 deg away).
+forward); a stall in a long reverse leaves no rest to measure from at all, and both engines
+took the course as a forward drive's. The old engine knew the heading; over the gap the
+vehicle turns at most :data:`MAX_YAW_RATE_RPS`, and after it the new engine's gyro carries
+that heading on. Within :data:`MAX_BOUND_RAD` it decides the direction (the boundary is 90
+deg away).
 """
 
 from __future__ import annotations
