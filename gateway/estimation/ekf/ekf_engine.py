@@ -774,31 +774,34 @@ class EkfEngine:
             a, b, d = p.item(6, 6), p.item(6, 7), p.item(7, 7)
             worse = 0.5 * (a + d) + math.sqrt(0.25 * (a - d) ** 2 + b * b)  # larger eigenvalue
             step = self._tilt_step_rad(self._t_s) if self._t_s is not None else 0.0
-            return math.sqrt(
-                max(worse + self._unobserved_bias_var_rad2(p), step * step) + mounting_var
-            )
+            bx, by = BA.start, BA.start + 1
+            var_ba = max(p.item(bx, bx), p.item(by, by))
+            unobserved = self._unobserved_bias_var(var_ba) / GRAVITY_MPS2**2
+            return math.sqrt(max(worse + unobserved, step * step) + mounting_var)
         if self._ins is None or tun is None or self._t_s is None:
             return None
-        sig_ba = max(tun.sigma_bias_a0_mps2, self.cfg.accel_bias_sigma_covered_mps2)
+        var_ba = tun.sigma_bias_a0_mps2**2
         if self._seed is not None:
-            sig_ba = max(self._seed.sigma_a_mps2[0], self._seed.sigma_a_mps2[1])
+            var_ba = max(self._seed.sigma_a_mps2[0], self._seed.sigma_a_mps2[1]) ** 2
         return math.sqrt(
-            (sig_ba / GRAVITY_MPS2) ** 2
+            (var_ba + self._unobserved_bias_var(var_ba)) / GRAVITY_MPS2**2
             + self._sigma_level_rad**2
             + self._drift_var_rad2(self._t_s)
             + mounting_var
         )
 
-    def _unobserved_bias_var_rad2(self, p: Array) -> float:
-        """Tilt variance of a turn-on accelerometer bias beyond P0's (``[ekf]
-        accel_bias_sigma_covered_mps2``) that the filter has not yet observed.
+    def _unobserved_bias_var(self, var_ba: float) -> float:
+        """Variance, (m/s^2)^2, of a turn-on accelerometer bias beyond P0's (``[ekf]
+        accel_bias_sigma_covered_mps2``) that a filter whose x/y bias variance is ``var_ba``
+        (P's, or a seed's: the learned state carries P) has not yet observed.
 
         A linear filter's estimate of a constant keeps the fraction r = P / P0 of its true
         value unlearnt; drawn from the wider spread, the bias leaves r^2 (sigma_c^2 -
         sigma_0^2) more error than P says, and until the heading changes that is tilt (C b_a
         and g phi are one quantity). Seed 000's example bias, 0.2 m/s^2 (here on y, 40 times
         P0's sigma), had roll 1.36 deg off with 0.30 stated from the start's rest to the
-        first turn (field seed 1: 1094 frames beyond 0.1 deg + 3 sigma; none now).
+        first turn (field seed 1: 1094 frames beyond 0.1 deg + 3 sigma; none now); a warm
+        start from a run that never turned stated the seed's 0.29 deg, parked.
         """
         tun = self._tuning
         assert tun is not None
@@ -806,9 +809,8 @@ class EkfEngine:
         extra = self.cfg.accel_bias_sigma_covered_mps2**2 - var0
         if extra <= 0.0:
             return 0.0
-        bx, by = BA.start, BA.start + 1
-        r = min(1.0, max(p.item(bx, bx), p.item(by, by)) / var0)
-        return r * r * extra / GRAVITY_MPS2**2
+        r = min(1.0, var_ba / var0)
+        return r * r * extra
 
     def _drift_var_rad2(self, t: float) -> float:
         """Tilt variance the gyro adds from levelling to ``t``, while roll/pitch go out
