@@ -10,8 +10,9 @@ accelerometer bias would hide a mounting tilt:
   matches the GNSS energy (:mod:`.work_windows`, :mod:`.forward_axis`; forward driving with
   RTK fixes, turns both ways or a side slope driven both ways);
 - pitch: an engine fed the samples holds the IMU axes' pitch once turns have taught it the
-  accelerometer biases; the track's RTK slope is the body's (:mod:`.ins_tilt`);
-- roll: the engine's roll, averaged over the same ground driven both ways (:mod:`.ins_tilt`);
+  accelerometer biases; the track's RTK slope is the body's
+  (:mod:`gateway.estimation.ins_tilt`);
+- roll: the engine's roll, averaged over the same ground driven both ways (the same);
 - coarse roll and pitch, for any mounting error: it turns about its own z axis
   (:mod:`.turn_axis`). Bumps tilt the body during turns, so this is good to a few tenths of
   a degree; the engine is trusted only once the samples are within ``fine_range_deg`` of the
@@ -35,11 +36,11 @@ from drivers.samples import GnssFix, ImuSample
 from drivers.units import RAD_TO_DEG
 from gateway.calibration.forward_axis import ForwardAxisFit, perpendicular_x
 from gateway.calibration.imu_intervals import ImuIntervals, Vec3
-from gateway.calibration.ins_tilt import InsTilt, TiltEstimate
 from gateway.calibration.turn_axis import TurnAxisFit
 from gateway.calibration.work_windows import WorkWindows
 from gateway.estimation.attitude import dcm_from_rpy_deg, rpy_from_dcm
 from gateway.estimation.epoch_clock import EpochClock
+from gateway.estimation.ins_tilt import InsTilt, TiltEstimate
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 
@@ -106,16 +107,16 @@ class MountingEstimator:
         self.turns = TurnAxisFit(cfg.gyro_window_s)
         self.work = WorkWindows(obs.antenna_lever_arm_m, obs.imu_lever_arm_m, cfg.work_window_s)
         self.forward = ForwardAxisFit()
+        self.engine = ObserverEngine(obs)  # for the IMU axes' tilt
         self.tilt = InsTilt(
-            ObserverEngine(obs), obs.antenna_lever_arm_m, cfg.cell_m,
-            max_tilt_sigma_deg=cfg.max_sigma_deg,
-        )  # fmt: skip
+            obs.antenna_lever_arm_m, cfg.cell_m, max_tilt_sigma_deg=cfg.max_sigma_deg
+        )
 
     def imu(self, sample: ImuSample) -> None:
         """One IMU sample (in the axes of the configured mounting)."""
         self.intervals.add(sample)
         self.turns.add(sample)
-        self.tilt.imu(sample)
+        self.engine.imu(sample)
 
     def gnss(self, fix: GnssFix) -> None:
         """One GNSS epoch, after the IMU samples up to its receipt."""
@@ -123,7 +124,8 @@ class MountingEstimator:
         window = self.work.add(t_s, fix, self.intervals.cut(t_s))
         if window is not None:
             self.forward.add(window)
-        self.tilt.gnss(fix)
+        self.engine.gnss(fix)
+        self.tilt.epoch(fix, self.engine.solution())
 
     def result(self) -> MountingResult:
         """The estimate so far."""

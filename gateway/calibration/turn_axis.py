@@ -13,7 +13,7 @@ its bias point. What the fit cannot tell from a mounting: the terrain's own curv
 rotating the body about its x and y axes during a turn (bumps, a side slope that changes
 across the field): a few tenths of a degree per U-turn on bumpy ground, averaging out over
 turns both ways. Good enough to bring the samples near the body's axes, where an engine's
-attitude takes over (:mod:`gateway.calibration.ins_tilt`).
+attitude takes over (:mod:`gateway.estimation.ins_tilt`).
 """
 
 from __future__ import annotations

@@ -8,7 +8,9 @@ come; frames received from the ISOBUS go to the address claim, then to the
 :class:`~gateway.isobus.network.NetworkManager` (requests, commanded address), which also
 sends the heartbeat (looked at per IMU sample and poll with one comparison). While the claim
 has seen a clone of us (our NAME, or frames from our address that we did not send),
-NAVGW_STATUS says DEGRADED.
+NAVGW_STATUS says DEGRADED; so it does while the drive shows the IMU mounting in effect
+tilted off the vehicle's axes (:mod:`gateway.fusion.mounting_check`, fed each fix with the
+engine's next solution made for the bus: none made for it alone).
 
 Frames come back as iterators that encode as they are taken: a caller that sends while it
 iterates puts the attitude on the bus first (see :meth:`OutputScheduler.frames`).
@@ -58,6 +60,7 @@ from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.solution import LearnedState, LearningEstimator, Mode, Solution
 from gateway.fusion.engines import epoch_clock, make_engine
+from gateway.fusion.mounting_check import MountingCheck
 from gateway.fusion.output_guard import OutputGuard
 from gateway.fusion.rest_check import (
     MIN_REST_S,
@@ -141,8 +144,10 @@ class FusionCore:
         make_engine: Callable[[], LearningEstimator] | None = None,
         warm_start: WarmStart | None = None,
         track_rest: bool = False,
+        mounting: MountingCheck | None = None,
     ) -> None:
-        """``track_rest``: follow the rests for the learned state (the shell keeps one)."""
+        """``track_rest``: follow the rests for the learned state (the shell keeps one);
+        ``mounting``: the check of the IMU mounting in effect (None: none)."""
         self.engine = engine
         self._make_engine = make_engine  # for a restart; None: the engine carries on
         self.scheduler = scheduler
@@ -163,6 +168,8 @@ class FusionCore:
         self.warm_started = False  # the engine started from a learned state
         self.rest = RestMean() if track_rest or warm_start is not None else None
         self._pending_seed: WarmSeed | None = None  # to check at rest on the same spot
+        self.mounting = mounting
+        self._fix_to_check: GnssFix | None = None  # for the mounting, with the next solution
 
     @classmethod
     def from_config(
@@ -213,6 +220,9 @@ class FusionCore:
             imu_lost=imu_lost,
             warm_start=warm_start,
             track_rest=track_rest,
+            mounting=MountingCheck(
+                config.vehicle.antenna_lever_arm_m, config.vehicle.imu_mounting_sigma_deg
+            ),
         )
 
     def start(self, now: float) -> Iterator[can.Message]:
@@ -228,6 +238,8 @@ class FusionCore:
         if isinstance(item, GnssFix):
             self.stats.gnss_fixes += 1
             self.engine.gnss(item)
+            if self.mounting is not None:
+                self._fix_to_check = item
             if self.rest is not None:
                 self.rest.gnss(item)
                 if self._pending_seed is not None:
@@ -306,9 +318,18 @@ class FusionCore:
         )
         if not (t >= self.scheduler.next_due_t and claimer.claimed):
             return self._counted(polled) if polled else NOTHING
-        sent = self._attributable(self.guard.check(self.engine.solution()), t)
+        sol = self.engine.solution()
+        if self._fix_to_check is not None:
+            self._check_mounting(sol)
+        sent = self._attributable(self.guard.check(sol), t)
         frames = self.scheduler.frames(sent, self.loop_status(t), now=self._told(sent.mode))
         return self._counted(chain(polled, frames) if polled else frames)
+
+    def _check_mounting(self, sol: Solution) -> None:
+        """The last fix, with the first solution after it (one output period at most)."""
+        assert self.mounting is not None and self._fix_to_check is not None
+        self.mounting.epoch(self._fix_to_check, sol)
+        self._fix_to_check = None
 
     def _on_saturated(self, sample: ImuSample) -> Iterator[can.Message]:
         """A saturated sample: not fed to the engine; NAVGW_STATUS says FAULT."""
@@ -367,8 +388,9 @@ class FusionCore:
     def _attributable(self, sol: Solution, now: float) -> Solution:
         """``sol``, DEGRADED (or worse) while another node recently claimed our NAME or sent
         from our address: a controller cannot tell which frames with our address are ours.
-        DEGRADED, not FAULT: our own solution is sound, and FAULT would say it is not."""
-        if self.claimer.conflict(now):
+        DEGRADED, not FAULT: our own solution is sound, and FAULT would say it is not. So
+        too while the mounting in effect is seen off: roll and pitch are off by it."""
+        if self.claimer.conflict(now) or (self.mounting is not None and self.mounting.off):
             return replace(sol, mode=max(sol.mode, Mode.DEGRADED))
         return sol
 

@@ -566,6 +566,9 @@ class GatewayService:
             parts.append(f"{self.core.claimer.name_conflicts} claims with our NAME (a clone)")
         if self.core.claimer.spoofed_frames:
             parts.append(f"{self.core.claimer.spoofed_frames} frames from our address not ours")
+        if (check := self.core.mounting) is not None and check.off:
+            off = "; ".join(o.text() for o in check.found)
+            parts.append(f"degraded: the drive shows the IMU mounting in effect off ({off})")
         if self.mounting is not None:
             parts.append(self.mounting.summary)  # says if a mounting was applied from state
         elif self.applied is not None:

@@ -18,6 +18,11 @@ convergence flag, or its stated roll/pitch 1-sigma within ``max_tilt_sigma_deg``
 determined axis may have; the accelerometer bias over g is part of it). Running
 sums, but for the cells: a bounded map (``MAX_CELLS``) of ``cell_m`` squares around the
 first position.
+
+Fed an engine's solution at each GNSS epoch (:meth:`InsTilt.epoch`): the own observer of
+``navgw calibrate`` (:mod:`gateway.calibration.mounting`), and the fusion core's engine,
+whose check of the mounting in effect tells the bus when the drive shows it off
+(:mod:`gateway.fusion.mounting_check`).
 """
 
 from __future__ import annotations
@@ -26,9 +31,9 @@ import dataclasses
 import math
 from dataclasses import dataclass
 
-from drivers.samples import FixQuality, GnssFix, ImuSample
+from drivers.samples import FixQuality, GnssFix
 from drivers.units import wrap_pi
-from gateway.estimation.solution import Estimator, Mode, Solution
+from gateway.estimation.solution import Mode, Solution
 
 #: Ground cells kept (4 m cells: 80 km of single track); later cells are not started.
 MAX_CELLS = 20_000
@@ -48,12 +53,13 @@ class TiltEstimate:
     """One axis: the mounting angle (rad, None before anything usable), its 1-sigma (rad),
     how much drive went in and how much was driven in all (m: forward for pitch; both ways
     on the same cells, the lesser way, for roll; in all: whether or not the engine had learnt
-    its biases yet)."""
+    its biases yet), and the blocks whose scatter gave the sigma (few: a rough sigma)."""
 
     angle_rad: float | None
     sigma_rad: float
     distance_m: float
     driven_m: float
+    blocks: int
 
 
 @dataclass(slots=True)
@@ -83,13 +89,66 @@ class _BlockMean:
         """The mean; its 1-sigma from the scatter (errors independent between blocks, times
         G / (G - 1)), no less than ``floor_rad``; unknown with fewer than two blocks."""
         if self.weight <= 0.0:
-            return TiltEstimate(None, math.inf, self.distance_m, driven_m)
+            return TiltEstimate(None, math.inf, self.distance_m, driven_m, self.blocks)
         mean = self.weighted / self.weight
         g = self.blocks
         scatter = max(self.bb - 2.0 * mean * self.bw + mean * mean * self.ww, 0.0)
         variance = scatter * g / max(g - 1, 1) / self.weight**2
         sigma = math.sqrt(variance + floor_rad**2) if g > 1 else math.inf
-        return TiltEstimate(mean, sigma, self.distance_m, driven_m)
+        return TiltEstimate(mean, sigma, self.distance_m, driven_m, g)
+
+
+@dataclass(frozen=True, slots=True)
+class RollCoupling:
+    """Pitch against the ground fitted per segment as ``pitch_rad + coupling x roll``: a
+    mounting yaw psi turns a side slope's roll into the axes' pitch, coupling -sin(psi)
+    (what the mean of :meth:`InsTilt.pitch` cancels when the slope is driven both ways, and
+    what the pitch sent carries on each pass). 1-sigmas from the segments' scatter (the
+    pitch's no less than the engine's tilt sigma), the roll's RMS over the segments (rad)
+    and the number of segments."""
+
+    pitch_rad: float
+    sigma_pitch_rad: float
+    coupling: float
+    sigma_coupling: float
+    roll_rms_rad: float
+    segments: int
+
+
+@dataclass(slots=True)
+class _LineFit:
+    """Weighted least squares of e = a + b r by running sums (weights: distance)."""
+
+    n: int = 0
+    w: float = 0.0
+    wr: float = 0.0
+    wrr: float = 0.0
+    we: float = 0.0
+    wer: float = 0.0
+    wee: float = 0.0
+
+    def add(self, weight: float, e: float, r: float) -> None:
+        """One segment."""
+        self.n += 1
+        self.w += weight
+        self.wr += weight * r
+        self.wrr += weight * r * r
+        self.we += weight * e
+        self.wer += weight * e * r
+        self.wee += weight * e * e
+
+    def fit(self, floor_rad: float) -> RollCoupling | None:
+        """The line and its 1-sigmas from the residuals' scatter; None with fewer than three
+        segments or no spread of roll."""
+        det = self.w * self.wrr - self.wr * self.wr
+        if self.n < 3 or det <= 1e-12 * self.w * self.w:
+            return None
+        b = (self.w * self.wer - self.wr * self.we) / det
+        a = (self.we - b * self.wr) / self.w
+        s2 = max(self.wee - a * self.we - b * self.wer, 0.0) / (self.n - 2)
+        sigma_a = math.sqrt(s2 * self.wrr / det + floor_rad**2)
+        sigma_b = math.sqrt(s2 * self.w / det)
+        return RollCoupling(a, sigma_a, b, sigma_b, math.sqrt(self.wrr / self.w), self.n)
 
 
 @dataclass(slots=True)
@@ -102,11 +161,10 @@ class _Cell:
 
 
 class InsTilt:
-    """Feeds an engine and compares its roll and pitch with the ground's."""
+    """Compares an engine's roll and pitch with the ground's."""
 
     def __init__(
         self,
-        engine: Estimator,
         antenna_lever_arm_m: tuple[float, float, float],
         cell_m: float = 4.0,
         min_speed_mps: float = 1.0,
@@ -114,7 +172,6 @@ class InsTilt:
         *,
         max_tilt_sigma_deg: float,
     ) -> None:
-        self.engine = engine
         self.l_ant = antenna_lever_arm_m
         self.cell_m = cell_m
         self.min_speed_mps = min_speed_mps
@@ -126,18 +183,14 @@ class InsTilt:
         self._t_s: float | None = None  # the previous epoch's receipt
         self._cells: dict[tuple[int, int], _Cell] = {}
         self._last: tuple[float, float] | None = None  # height, pitch at the segment's end
-        self._segment = [0.0, 0.0, 0.0]  # distance m, sum tan(pitch) ds, height at start
+        # distance m, sum tan(pitch) ds, height at start, sum roll ds
+        self._segment = [0.0, 0.0, 0.0, 0.0]
         self._segments = _BlockMean()  # per segment: distance, distance x pitch estimate
+        self._coupling = _LineFit()  # per segment: distance, pitch estimate, mean roll
         self._forward_m = 0.0  # usable forward driving, learnt or not
 
-    def imu(self, sample: ImuSample) -> None:
-        """One IMU sample for the engine."""
-        self.engine.imu(sample)
-
-    def gnss(self, fix: GnssFix) -> None:
-        """One GNSS epoch for the engine; then its solution is compared with the ground."""
-        self.engine.gnss(fix)
-        sol = self.engine.solution()
+    def epoch(self, fix: GnssFix, sol: Solution) -> None:
+        """One GNSS epoch and the engine's solution after it, compared with the ground."""
         dt_s = fix.t - self._t_s if self._t_s is not None else 0.0
         self._t_s = fix.t
         moving = (
@@ -172,28 +225,32 @@ class InsTilt:
         height = alt_m - math.sin(pitch) * lx + math.cos(pitch) * lz  # the reference point's
         last, self._last = self._last, (height, pitch)
         if last is None:
-            self._segment = [0.0, 0.0, height]
+            self._segment = [0.0, 0.0, height, 0.0]
             return
         self._segment[0] += ds_m
         self._segment[1] += 0.5 * (math.tan(pitch) + math.tan(last[1])) * ds_m
+        self._segment[3] += (sol.roll_rad or 0.0) * ds_m
         if self._segment[0] >= SEGMENT_M:
             self._end_segment()
             self._last = (height, pitch)
-            self._segment = [0.0, 0.0, height]
+            self._segment = [0.0, 0.0, height, 0.0]
 
     def _end_segment(self) -> None:
         """Close the segment of forward driving."""
         if (segment := self._segment_estimate()) is not None:
-            self._segments.add(segment[0], segment[0] * segment[1], segment[0])
+            distance, estimate, roll = segment
+            self._segments.add(distance, distance * estimate, distance)
+            self._coupling.add(distance, estimate, roll)
         self._last = None
-        self._segment = [0.0, 0.0, 0.0]
+        self._segment = [0.0, 0.0, 0.0, 0.0]
 
-    def _segment_estimate(self) -> tuple[float, float] | None:
-        """The open segment's (distance m, mean tan(pitch) of the axes - slope of the track)."""
-        distance, tan_sum, height0 = self._segment
+    def _segment_estimate(self) -> tuple[float, float, float] | None:
+        """The open segment's (distance m, mean tan(pitch) of the axes - slope of the track,
+        mean roll rad)."""
+        distance, tan_sum, height0, roll_sum = self._segment
         if self._last is None or distance < MIN_SEGMENT_M:
             return None
-        return distance, (tan_sum - (self._last[0] - height0)) / distance
+        return distance, (tan_sum - (self._last[0] - height0)) / distance, roll_sum / distance
 
     def _roll(self, sol: Solution, ds_m: float, learnt: bool) -> None:
         """Add the epoch's roll to its cell of ground, on the way it faces."""
@@ -225,6 +282,10 @@ class InsTilt:
         if (segment := self._segment_estimate()) is not None:
             segments.add(segment[0], segment[0] * segment[1], segment[0])
         return segments.estimate(self.sigma_tilt_rad, self._forward_m)
+
+    def roll_coupling(self) -> RollCoupling | None:
+        """The closed segments' pitch against their roll (None: too few, or no roll spread)."""
+        return self._coupling.fit(self.sigma_tilt_rad)
 
     def roll(self) -> TiltEstimate:
         """Mounting roll: per cell driven both ways, the mean roll of the two ways, weighted

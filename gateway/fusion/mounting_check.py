@@ -1,0 +1,133 @@
+"""Is the IMU mounting in effect the vehicle's? The drive tells, and so does NAVGW_STATUS.
+
+A roll or pitch of the IMU that the configured mounting (SPEC 5) leaves out is a tilt error
+no engine can see: the samples are those of a rigid frame, and every estimate follows that
+frame. The roll and pitch sent are off by it while the accuracy stated is the engine's (a
+mounting left unset on a unit bolted 3 deg nose-up: pitch 3 deg off, 0.06 deg stated). The
+drive shows it: :class:`~gateway.estimation.ins_tilt.InsTilt` on the engine's solutions, as
+``navgw calibrate`` does on its own observer's (pitch against the RTK track's slope, roll
+over the same ground driven both ways). A mounting yaw tilts nothing on level ground, but
+on a side slope it turns the roll into the axes' pitch (pitch off by roll x sin(yaw)): the
+segments' pitch against their roll
+(:meth:`~gateway.estimation.ins_tilt.InsTilt.roll_coupling`). Once the roll or pitch, or
+the pitch from roll at the roll driven (RMS), is off by more than ``SIGMAS`` of its 1-sigma
+plus ``TOLERANCE_DEG``, from at least ``MIN_BLOCKS`` blocks of driving,
+:attr:`MountingCheck.off` is set and the core sends DEGRADED (SPEC 4: a value
+beyond its stated accuracy goes out only with NAVGW_STATUS saying so) until the drive no
+longer shows it; the mounting itself is never changed while running (``navgw calibrate``,
+or the live estimate's line in the log, gives the one to configure).
+
+Per GNSS epoch only, nothing per IMU sample; the estimate is looked at every
+``CHECK_INTERVAL_S`` of fix time (the roll's cells are summed then). On flat ground a
+mounting yaw is left to the live estimate (:mod:`gateway.service.mounting_watch`, which
+costs as much as an engine per sample): there it tilts nothing sent.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+
+from drivers.samples import Float3, GnssFix
+from drivers.units import RAD_TO_DEG
+from gateway.estimation.ins_tilt import InsTilt, RollCoupling, TiltEstimate
+from gateway.estimation.solution import Solution
+
+log = logging.getLogger(__name__)
+
+#: An axis counts as off beyond this many of its 1-sigmas ...
+SIGMAS = 3.0
+#: ... plus this (deg): the margin of the check of what goes out (docs/ROBUSTNESS.md).
+TOLERANCE_DEG = 0.1
+#: The sigma is the scatter between blocks of driving (50 m of forward driving for pitch,
+#: 20 m squares driven both ways for roll): with fewer, it is itself too rough to judge by
+#: (with correct mountings the angles stayed within a quarter of the bound, docs/ROBUSTNESS.md).
+MIN_BLOCKS = 5
+#: The estimate is looked at this often (s of fix time).
+CHECK_INTERVAL_S = 10.0
+#: An engine's epochs count once it states roll/pitch within this (deg), or says its
+#: accelerometer biases converged (what ``navgw calibrate`` takes as determined).
+LEARNT_TILT_SIGMA_DEG = 0.15
+
+
+@dataclass(frozen=True, slots=True)
+class TiltOff:
+    """One axis's mounting error as the drive shows it: the angle and its 1-sigma (deg)."""
+
+    axis: str
+    angle_deg: float
+    sigma_deg: float
+
+    def text(self) -> str:
+        """E.g. ``pitch 2.95 +/- 0.09 deg``."""
+        return f"{self.axis} {self.angle_deg:+.2f} +/- {self.sigma_deg:.2f} deg"
+
+
+class MountingCheck:
+    """Fed each GNSS fix with the engine's solution after it; :attr:`off` while the drive
+    shows the mounting in effect tilted off the body's axes."""
+
+    def __init__(self, antenna_lever_arm_m: Float3, mounting_sigma_deg: float = 0.0) -> None:
+        """``mounting_sigma_deg``: the configured mounting's stated roll/pitch 1-sigma
+        (``[vehicle] imu_mounting_sigma_deg``), already in the engine's stated accuracy and
+        so in the roll's and pitch's sigmas here; the yaw's tilt is allowed it too."""
+        self.tilt = InsTilt(antenna_lever_arm_m, max_tilt_sigma_deg=LEARNT_TILT_SIGMA_DEG)
+        self.mounting_sigma_deg = mounting_sigma_deg
+        self.off = False
+        self.found: tuple[TiltOff, ...] = ()  # the axes off at the last look
+        self._next_t: float | None = None
+
+    def epoch(self, fix: GnssFix, sol: Solution) -> None:
+        """One GNSS fix and the solution after it; every CHECK_INTERVAL_S, the verdict."""
+        self.tilt.epoch(fix, sol)
+        if self._next_t is not None and fix.t < self._next_t:
+            return
+        self._next_t = fix.t + CHECK_INTERVAL_S
+        tilt = self.tilt
+        found = tuple(
+            off
+            for off in (
+                _off("roll", tilt.roll()),
+                _off("pitch", tilt.pitch()),
+                _yaw_off(tilt.roll_coupling(), self.mounting_sigma_deg),
+            )
+            if off is not None
+        )
+        if bool(found) != self.off:
+            if found:
+                log.warning(
+                    "t=%.1f: the IMU mounting in effect is off the vehicle's axes (%s): roll "
+                    "and pitch sent are off by as much; NAVGW_STATUS degraded. Run navgw "
+                    "calibrate on a recording of this drive, set [vehicle] "
+                    "imu_mounting_rpy_deg and restart", fix.t, "; ".join(o.text() for o in found),
+                )  # fmt: skip
+            else:
+                log.warning(
+                    "t=%.1f: the drive no longer shows the IMU mounting off; NAVGW_STATUS "
+                    "no longer degraded for it", fix.t,
+                )  # fmt: skip
+        self.off, self.found = bool(found), found
+
+
+def _off(axis: str, est: TiltEstimate) -> TiltOff | None:
+    """The axis's error, when the drive shows it beyond chance; else None."""
+    if est.angle_rad is None or est.blocks < MIN_BLOCKS or not math.isfinite(est.sigma_rad):
+        return None
+    angle, sigma = est.angle_rad * RAD_TO_DEG, est.sigma_rad * RAD_TO_DEG
+    if abs(angle) <= SIGMAS * sigma + TOLERANCE_DEG:
+        return None
+    return TiltOff(axis, angle, sigma)
+
+
+def _yaw_off(fit: RollCoupling | None, stated_deg: float) -> TiltOff | None:
+    """The mounting yaw, when the pitch it carries at the roll driven is beyond chance and
+    beyond the mounting's stated 1-sigma ``stated_deg``."""
+    if fit is None or fit.segments < MIN_BLOCKS:
+        return None
+    error_deg = abs(fit.coupling) * fit.roll_rms_rad * RAD_TO_DEG
+    sigma_deg = fit.sigma_coupling * fit.roll_rms_rad * RAD_TO_DEG
+    if error_deg <= SIGMAS * (sigma_deg + stated_deg) + TOLERANCE_DEG:
+        return None
+    yaw = math.asin(max(-1.0, min(1.0, -fit.coupling)))
+    return TiltOff("yaw", yaw * RAD_TO_DEG, fit.sigma_coupling * RAD_TO_DEG)

@@ -1,0 +1,178 @@
+"""The check of the IMU mounting in effect (gateway.fusion.mounting_check): what the drive
+shows, and the bound it is judged by.
+
+Synthetic drives: the same 600 m line on a plane driven north and south twice (RTK heights
+with 1 cm noise, 10 Hz, 3 m/s), the engine's solution the body's attitude turned by a
+mounting error (the axes' pitch off by ``pitch``, roll by ``roll``, and a yaw turning the
+roll into the pitch), with 0.03 deg of noise and a stated 1-sigma of 0.05 deg. Then the
+whole path on a simulated drive: the IMU bolted 3 deg off, none configured, through
+``navgw replay``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from drivers.samples import FixQuality, GnssFix
+from gateway.config.gateway_config import Engine, load_config
+from gateway.estimation.solution import Mode, Solution
+from gateway.fusion.mounting_check import MIN_BLOCKS, MountingCheck
+from gateway.offline.log_replay import replay
+from sim_bus.scenarios import SCENARIOS, SimRun, generate
+from sim_bus.truth import Truth
+from tests.n2k_check import DEGRADED, attitude_errors_deg, decode_log, status_modes
+
+M_PER_DEG = 6_371_000.0 * math.pi / 180.0  # InsTilt's sphere
+SIGMA_TILT_DEG = 0.05
+TRUE_RPY = (0.0, -3.0, 0.0)  # the simulated unit's mounting
+
+
+def drive(
+    check: MountingCheck,
+    *,
+    pitch_deg: float = 0.0,
+    roll_deg: float = 0.0,
+    yaw_deg: float = 0.0,
+    along_deg: float = 1.0,
+    cross_deg: float = 5.0,
+    line_m: float = 600.0,
+    passes: int = 4,
+    seed: int = 1,
+) -> None:
+    """``passes`` of the line (north, south, ...), a second's stop between them."""
+    rng = np.random.default_rng(seed)
+    speed, dt = 3.0, 0.1
+    t = 0.0
+    for k in range(passes):
+        north = k % 2 == 0
+        steps = int(line_m / (speed * dt))
+        for i in range(-10, steps + 1):
+            moving = i >= 0
+            n = (i if north else steps - i) * speed * dt if moving else (0.0 if north else line_m)
+            # the body on the plane h = n tan(along) + e tan(cross), e = 0: going north the
+            # right side is east, uphill (roll negative); going south the other way
+            body_pitch = math.radians(along_deg if north else -along_deg)
+            body_roll = math.radians(-cross_deg if north else cross_deg)
+            psi = math.radians(yaw_deg)
+            pitch = body_pitch - body_roll * math.sin(psi) + math.radians(pitch_deg)
+            roll = body_roll + body_pitch * math.sin(psi) + math.radians(roll_deg)
+            noise = rng.normal(0.0, math.radians(0.03), 2)
+            height = n * math.tan(math.radians(along_deg)) + rng.normal(0.0, 0.01)
+            t += dt
+            fix = GnssFix(
+                t=t,
+                t_utc=None,
+                quality=FixQuality.RTK_FIXED,
+                lat_deg=50.0 + n / M_PER_DEG,
+                lon_deg=8.0,
+                alt_m=100.0 + height,
+                sog_mps=speed if moving else 0.0,
+            )
+            sol = Solution(
+                t=t,
+                mode=Mode.NAVIGATING,
+                roll_rad=roll + noise[0],
+                pitch_rad=pitch + noise[1],
+                yaw_rad=0.0 if north else math.pi,
+                lat_deg=fix.lat_deg,
+                lon_deg=fix.lon_deg,
+                sigma_tilt_rad=math.radians(SIGMA_TILT_DEG),
+            )
+            check.epoch(fix, sol)
+
+
+def checked(**kwargs: float) -> MountingCheck:
+    check = MountingCheck((0.0, 0.0, 0.0))
+    drive(check, **kwargs)  # type: ignore[arg-type]
+    return check
+
+
+def test_the_mounting_of_the_body_is_not_seen_off() -> None:
+    check = checked()
+    assert not check.off
+    assert check.found == ()
+    pitch, roll = check.tilt.pitch(), check.tilt.roll()
+    assert pitch.blocks >= MIN_BLOCKS and roll.blocks >= MIN_BLOCKS  # judged, not waiting
+    assert abs(math.degrees(pitch.angle_rad or 9.0)) < 0.05
+
+
+@pytest.mark.parametrize(("axis", "error"), [("pitch", 0.5), ("roll", -0.5), ("yaw", 5.0)])
+def test_a_mounting_off_the_body_is_found_with_its_size(axis: str, error: float) -> None:
+    check = checked(**{f"{axis}_deg": error})
+    assert check.off
+    found = {o.axis: o for o in check.found}
+    assert set(found) == {axis}
+    tolerance = 0.05 if axis != "yaw" else 0.5
+    assert abs(abs(found[axis].angle_deg) - abs(error)) < tolerance, found[axis]
+
+
+def test_a_mounting_yaw_on_level_ground_tilts_nothing_and_is_not_judged_here() -> None:
+    """On level ground the yaw turns no roll into the pitch: nothing sent is off by it."""
+    assert not checked(yaw_deg=5.0, cross_deg=0.0).off
+
+
+def test_an_error_within_three_sigma_and_the_margin_is_not_called_off() -> None:
+    """The pitch's 1-sigma is at least the engine's stated 0.05 deg: the bound is 3 x 0.05
+    + 0.1 = 0.25 deg. 0.2 deg is within it; 0.3 is not."""
+    assert not checked(pitch_deg=0.2).off
+    assert checked(pitch_deg=0.3).off
+
+
+def test_too_little_driving_is_not_judged() -> None:
+    """Four 50 m segments: a scatter of four says too little of its own sigma."""
+    check = checked(pitch_deg=2.0, line_m=220.0, passes=1)
+    assert check.tilt.pitch().blocks < MIN_BLOCKS
+    assert not check.off
+
+
+def test_the_verdict_is_logged_once_with_what_to_do(caplog: pytest.LogCaptureFixture) -> None:
+    with caplog.at_level(logging.WARNING, logger="gateway.fusion.mounting_check"):
+        checked(pitch_deg=1.0)
+    text = [r.getMessage() for r in caplog.records]
+    assert len(text) == 1, text
+    assert "pitch +1.0" in text[0] and "navgw calibrate" in text[0], text[0]
+
+
+@pytest.fixture(scope="module")
+def bolted_off(tmp_path_factory: pytest.TempPathFactory) -> SimRun:
+    """The calibration drive (9.6 min, a 4-6 deg side slope driven both ways, turns both
+    ways) with the IMU bolted 3 deg nose-down."""
+    sc = SCENARIOS["calibration"]
+    sc = dataclasses.replace(sc, imu=dataclasses.replace(sc.imu, imu_mounting_rpy_deg=TRUE_RPY))
+    return generate(sc, tmp_path_factory.mktemp("mounted"), seed=1)
+
+
+@pytest.mark.parametrize("engine", list(Engine))
+@pytest.mark.parametrize("configured", [TRUE_RPY, (0.0, 0.0, 0.0)], ids=["true", "unset"])
+def test_a_unit_bolted_off_and_not_configured_is_degraded_on_the_bus(
+    engine: Engine, configured: tuple[float, float, float], bolted_off: SimRun, tmp_path: Path
+) -> None:
+    """``navgw replay`` of the drive, the attitude decoded by the independent ``nmea2000``
+    package. With the mounting unset, pitch goes out off by the mounting (the EKF's 1.2 deg:
+    its no-vertical-velocity constraint puts the rest into its x accelerometer bias) while
+    the engines state tenths: from the check's verdict on (within 8 minutes), every
+    NAVGW_STATUS says DEGRADED, to the end. With the true mounting configured, none does."""
+    base = load_config(bolted_off.config_file).with_engine(engine)
+    cfg = dataclasses.replace(
+        base, vehicle=dataclasses.replace(base.vehicle, imu_mounting_rpy_deg=configured)
+    )
+    out = tmp_path / "out.log"
+    replay(bolted_off.imu_log, bolted_off.gnss_log, out, cfg)
+    truth = Truth.load(bolted_off.truth_file)
+    modes = status_modes(out)
+    degraded = [t for t, mode in modes if mode == DEGRADED]
+    if configured == TRUE_RPY:
+        assert degraded == []
+        return
+    assert degraded, "never degraded"
+    t_off = degraded[0]
+    assert t_off - truth.t[0] < 480.0
+    assert all(mode == DEGRADED for t, mode in modes if t >= t_off)
+    errors = attitude_errors_deg(decode_log(out), truth, after_s=t_off - truth.t[0])
+    assert np.median(np.abs(errors[:, 1])) > 1.0  # the pitch so excused was that far off
