@@ -100,15 +100,12 @@ class _BlockMean:
 
 @dataclass(frozen=True, slots=True)
 class RollCoupling:
-    """Pitch against the ground fitted per segment as ``pitch_rad + coupling x roll``: a
-    mounting yaw psi turns a side slope's roll into the axes' pitch, coupling -sin(psi)
-    (what the mean of :meth:`InsTilt.pitch` cancels when the slope is driven both ways, and
-    what the pitch sent carries on each pass). 1-sigmas from the segments' scatter (the
-    pitch's no less than the engine's tilt sigma), the roll's RMS over the segments (rad)
-    and the number of segments."""
+    """Pitch against the ground fitted per segment as a line in the roll, ``a + coupling x
+    roll``: a mounting yaw psi turns a side slope's roll into the axes' pitch, coupling
+    -sin(psi) (what the mean of :meth:`InsTilt.pitch` cancels when the slope is driven both
+    ways, and what the pitch sent carries on each pass). Its 1-sigma from the segments'
+    scatter about the line, the roll's RMS over the segments (rad) and their number."""
 
-    pitch_rad: float
-    sigma_pitch_rad: float
     coupling: float
     sigma_coupling: float
     roll_rms_rad: float
@@ -137,18 +134,17 @@ class _LineFit:
         self.wer += weight * e * r
         self.wee += weight * e * e
 
-    def fit(self, floor_rad: float) -> RollCoupling | None:
-        """The line and its 1-sigmas from the residuals' scatter; None with fewer than three
-        segments or no spread of roll."""
+    def fit(self) -> RollCoupling | None:
+        """The line's slope and its 1-sigma from the residuals' scatter; None with fewer
+        than three segments or no spread of roll."""
         det = self.w * self.wrr - self.wr * self.wr
         if self.n < 3 or det <= 1e-12 * self.w * self.w:
             return None
         b = (self.w * self.wer - self.wr * self.we) / det
         a = (self.we - b * self.wr) / self.w
         s2 = max(self.wee - a * self.we - b * self.wer, 0.0) / (self.n - 2)
-        sigma_a = math.sqrt(s2 * self.wrr / det + floor_rad**2)
         sigma_b = math.sqrt(s2 * self.w / det)
-        return RollCoupling(a, sigma_a, b, sigma_b, math.sqrt(self.wrr / self.w), self.n)
+        return RollCoupling(b, sigma_b, math.sqrt(self.wrr / self.w), self.n)
 
 
 @dataclass(slots=True)
@@ -285,7 +281,7 @@ class InsTilt:
 
     def roll_coupling(self) -> RollCoupling | None:
         """The closed segments' pitch against their roll (None: too few, or no roll spread)."""
-        return self._coupling.fit(self.sigma_tilt_rad)
+        return self._coupling.fit()
 
     def roll(self) -> TiltEstimate:
         """Mounting roll: per cell driven both ways, the mean roll of the two ways, weighted
