@@ -224,6 +224,7 @@ def test_service_on_an_echoing_bus_tells_its_echo_from_a_clone(multicast_port: i
                 assert claimer.conflict(service.timebase.now())
                 line = service.status_line()
                 assert "1 claims with our NAME" in line and "1 frames from our address" in line
+                assert line.startswith("fault,"), line  # what STATUS says: no IMU
                 peer.send(claim(0x1C, claimer.name - 1))  # a lower NAME takes 0x1C
                 await until(lambda: claimer.claimed and claimer.address == 0x81)
                 echoes = service.echo.echoes

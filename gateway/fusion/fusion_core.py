@@ -455,6 +455,12 @@ class FusionCore:
         """The engine's current solution."""
         return self.engine.solution()
 
+    @property
+    def told_mode(self) -> Mode | None:
+        """The mode NAVGW_STATUS last said (the engine's, or worse: a clone of us, the
+        mounting seen off, the IMU silent; None before the first)."""
+        return self._told_mode
+
     def loop_status(self, t: float) -> LoopStatus:
         """What the loop adds to the solution: address, claim state, recent IMU losses (on
         the bus, and dropped by the live loop). The same object while none of it changes."""

@@ -71,6 +71,7 @@ from drivers.nmea import NmeaDecoder
 from drivers.samples import GnssFix, ImuAux, ImuSample
 from gateway.config.driver_settings import imu_config
 from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.solution import Mode
 from gateway.fusion.fusion_core import FusionCore
 from gateway.isobus.address_claim import ClaimState
 from gateway.service.bus_links import BusPlan, BusSpec, EchoFilter, claim_filters, is_bus_down
@@ -430,7 +431,7 @@ class GatewayService:
         watchdog_s = self.notifier.watchdog_interval_s
         period = min(STATUS_INTERVAL_S, watchdog_s or math.inf)
         next_status = time.monotonic() + STATUS_INTERVAL_S
-        claim, mode = self.core.claimer.state, self.core.solution().mode
+        claim, mode = self.core.claimer.state, self._mode()
         mark = (self.timebase.now(), self.core.stats.imu_samples)
         while True:
             await asyncio.sleep(period)
@@ -447,8 +448,8 @@ class GatewayService:
             if self.core.claimer.state is not claim:
                 claim = self.core.claimer.state
                 log.info("address claim %s: %s", claim.value, self._address_text())
-            if self.core.solution().mode is not mode:
-                mode = self.core.solution().mode
+            if self._mode() is not mode:
+                mode = self._mode()
                 log.info("mode %s", mode.name.lower())
             if self.mounting is not None and (text := self.mounting.update(self.timebase.now())):
                 log.info("%s", text)
@@ -540,13 +541,17 @@ class GatewayService:
             return "no address free (cannot claim)"
         return f"claiming {address}" if claimer.address is not None else "address not claimed"
 
+    def _mode(self) -> Mode:
+        """The mode on the bus: NAVGW_STATUS's last, the engine's before the first."""
+        return self.core.told_mode or self.core.solution().mode
+
     def status_line(self) -> str:
         """One line: mode, fix, IMU rate, GNSS, address, frames out, and what is missing."""
         sol = self.core.solution()
         fix = sol.fix_quality.name.lower().replace("_", " ") if sol.fix_quality else "none"
         gnss = "GNSS connected" if self.gnss.connected else f"GNSS waiting for {self.gnss.port}"
         parts = [
-            sol.mode.name.lower(),
+            self._mode().name.lower(),
             f"fix {fix}",
             f"IMU {self.stats.imu_rate_hz:.1f} Hz",
             gnss,
