@@ -118,6 +118,9 @@ ACCEL_BIAS_FLOOR_MPS2 = 0.01
 #: extension, :meth:`ObserverEngine._learn_accel_bias_z`): 1.1-1.9 mg RMS measured after
 #: 240 s on steep-turns seeds 1-3 (docs/ACCURACY.md), with margin.
 ACCEL_BIAS_Z_FLOOR_MPS2 = 0.003
+#: The x/y accelerometer bias estimate tells the size of the turn-on bias once the learning
+#: exponent has taken out this much of it (:meth:`ObserverEngine._sigma_ba_mps2`).
+SHOWN_BIAS_MIN_LEARNT = 0.2
 
 # History row: a plain tuple (one per IMU sample, so no object overhead), read by these names:
 # time; integral of f_p N, E, D (m/s); platform heading psi; cumulative heading correction;
@@ -220,6 +223,9 @@ class ObserverEngine:
         self._learn_ok_since_s: float | None = None
         self._g_learn = 0.0  # integral of dt / tau_g while learning
         self._a_learn = 0.0  # integral of w_z^2 / (omega_a (1 + (w_z tau)^2)) dt while learning
+        # where the x/y accelerometer bias learning started: estimate, its 1-sigma, exponent
+        # (a cold start's zeros and turn-on sigma; a seed's): :meth:`_sigma_ba_mps2`
+        self._ba_origin = (0.0, 0.0, cfg.accel_bias_sigma0_mps2, 0.0)
         self._az_learn_s = 0.0  # time the z accelerometer bias has learnt on RTK heights
         self._lever_vd_prev_mps: float | None = None  # (C (w x l_imu))_d at the last learning
         self._e_var_mps4 = 0.0  # running variance of one horizontal e component
@@ -439,9 +445,9 @@ class ObserverEngine:
         self._g_learn = seeded_exponent(
             cfg.gyro_bias_sigma0_dps * DEG_TO_RAD, max(s.sigma_g_rps[0], s.sigma_g_rps[1])
         )
-        self._a_learn = seeded_exponent(
-            cfg.accel_bias_sigma0_mps2, max(s.sigma_a_mps2[0], s.sigma_a_mps2[1])
-        )
+        sigma_a = max(s.sigma_a_mps2[0], s.sigma_a_mps2[1])
+        self._a_learn = seeded_exponent(cfg.accel_bias_sigma0_mps2, sigma_a)
+        self._ba_origin = (s.bias_a_mps2[0], s.bias_a_mps2[1], sigma_a, self._a_learn)
         self._az_learn_s = cfg.accel_bias_z_tau_s * seeded_exponent(
             cfg.accel_bias_sigma0_mps2, s.sigma_a_mps2[2]
         )
@@ -1419,9 +1425,26 @@ class ObserverEngine:
         return max(sigma0 * math.exp(-self._g_learn), GYRO_BIAS_FLOOR_RPS * self._floor_scale)
 
     def _sigma_ba_mps2(self) -> float:
-        """x/y accelerometer bias 1-sigma: the turn-on sigma decaying with the exponent."""
-        sigma0 = self.cfg.accel_bias_sigma0_mps2
-        return max(sigma0 * math.exp(-self._a_learn), ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale)
+        """x/y accelerometer bias 1-sigma: the turn-on sigma (or the seed's) decaying with
+        the exponent, or more where the estimate shows a bias beyond it.
+
+        Eq. (12) takes out the fraction 1 - e^-a of the error e0 it started with (a being
+        the exponent learnt since), so the estimate has moved by e0 (1 - e^-a) and e0 e^-a
+        is left: (b_hat - b_hat0) e^-a / (1 - e^-a). For an error within the starting
+        sigma that is within sigma0 e^-a; for seed 000's 0.2 m/s^2 against the 0.1 of the
+        turn-on model it is twice as much, and a sigma that decayed from 0.1 stated half
+        the error left (headland-reversing seed 117 restarted: 1.06 deg off with 0.32
+        stated). Looked at once the estimate has moved a fifth of the way
+        (``SHOWN_BIAS_MIN_LEARNT``): before, its noise would be the bias shown."""
+        bx0, by0, sigma0, a0 = self._ba_origin
+        left = math.exp(a0 - self._a_learn)
+        sigma = sigma0 * left
+        obs = self._observer
+        if obs is not None and 1.0 - left >= SHOWN_BIAS_MIN_LEARNT:
+            ba = obs.ba_hat_mps2
+            shown = max(abs(ba[0] - bx0), abs(ba[1] - by0))
+            sigma = max(sigma, shown * left / (1.0 - left))
+        return max(sigma, ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale)
 
     def _sigma_baz_mps2(self) -> float:
         """z accelerometer bias 1-sigma: the turn-on sigma (or the seed's) decaying with
