@@ -9,9 +9,10 @@ drive shows it: :class:`~gateway.estimation.ins_tilt.InsTilt` on the engine's so
 over the same ground driven both ways). A mounting yaw tilts nothing on level ground, but
 on a side slope it turns the roll into the axes' pitch (pitch off by roll x sin(yaw)): the
 segments' pitch against their roll
-(:meth:`~gateway.estimation.ins_tilt.InsTilt.roll_coupling`). Once the roll or pitch, or
-the pitch from roll at the roll driven (RMS), is off by more than ``SIGMAS`` of its 1-sigma
-plus ``TOLERANCE_DEG``, from at least ``MIN_BLOCKS`` blocks of driving,
+(:meth:`~gateway.estimation.ins_tilt.InsTilt.roll_coupling`). Once the roll or pitch is off
+by more than ``SIGMAS`` of its 1-sigma plus ``OFFSET_TOLERANCE_DEG`` (what a chassis leans
+on its tyres), or the pitch from roll at the roll driven (RMS) by more than ``SIGMAS`` of
+its plus ``COUPLING_TOLERANCE_DEG``, from at least ``MIN_BLOCKS`` blocks of driving,
 :attr:`MountingCheck.off` is set and the core sends DEGRADED (SPEC 4: a value
 beyond its stated accuracy goes out only with NAVGW_STATUS saying so) until the drive no
 longer shows it; the mounting itself is never changed while running (``navgw calibrate``,
@@ -38,8 +39,15 @@ log = logging.getLogger(__name__)
 
 #: An axis counts as off beyond this many of its 1-sigmas ...
 SIGMAS = 3.0
-#: ... plus this (deg): the margin of the check of what goes out (docs/ROBUSTNESS.md).
-TOLERANCE_DEG = 0.1
+#: ... plus this (deg), for the roll and pitch: the chassis itself leans on its tyres
+#: against the ground it drives (a lifted rear implement pitches a tractor some 0.5 deg
+#: nose-up, a heavy side load rolls it), which the IMU rightly measures and the ground's
+#: slopes do not show ...
+OFFSET_TOLERANCE_DEG = 0.5
+#: ... and this for the pitch a mounting yaw makes of the roll: nothing of the chassis
+#: couples them (a side slope's crabbing shows as an offset: the roll and the slip both
+#: turn over with the way driven). The margin of the check of what goes out.
+COUPLING_TOLERANCE_DEG = 0.1
 #: The sigma is the scatter between blocks of driving (50 m of forward driving for pitch,
 #: 20 m squares driven both ways for roll): with fewer, it is itself too rough to judge by
 #: (with correct mountings the angles stayed within a quarter of the bound, docs/ROBUSTNESS.md).
@@ -115,7 +123,7 @@ def _off(axis: str, est: TiltEstimate) -> TiltOff | None:
     if est.angle_rad is None or est.blocks < MIN_BLOCKS or not math.isfinite(est.sigma_rad):
         return None
     angle, sigma = est.angle_rad * RAD_TO_DEG, est.sigma_rad * RAD_TO_DEG
-    if abs(angle) <= SIGMAS * sigma + TOLERANCE_DEG:
+    if abs(angle) <= SIGMAS * sigma + OFFSET_TOLERANCE_DEG:
         return None
     return TiltOff(axis, angle, sigma)
 
@@ -127,7 +135,7 @@ def _yaw_off(fit: RollCoupling | None, stated_deg: float) -> TiltOff | None:
         return None
     error_deg = abs(fit.coupling) * fit.roll_rms_rad * RAD_TO_DEG
     sigma_deg = fit.sigma_coupling * fit.roll_rms_rad * RAD_TO_DEG
-    if error_deg <= SIGMAS * (sigma_deg + stated_deg) + TOLERANCE_DEG:
+    if error_deg <= SIGMAS * (sigma_deg + stated_deg) + COUPLING_TOLERANCE_DEG:
         return None
     yaw = math.asin(max(-1.0, min(1.0, -fit.coupling)))
     return TiltOff("yaw", yaw * RAD_TO_DEG, fit.sigma_coupling * RAD_TO_DEG)
