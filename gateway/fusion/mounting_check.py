@@ -13,10 +13,12 @@ segments' pitch against their roll
 by more than ``SIGMAS`` of its 1-sigma plus ``OFFSET_TOLERANCE_DEG`` (what a chassis leans
 on its tyres), or the pitch from roll at the roll driven (RMS) by more than ``SIGMAS`` of
 its plus ``COUPLING_TOLERANCE_DEG``, from at least ``MIN_BLOCKS`` blocks of driving,
-:attr:`MountingCheck.off` is set and the core sends DEGRADED (SPEC 4: a value
-beyond its stated accuracy goes out only with NAVGW_STATUS saying so) until the drive no
-longer shows it; the mounting itself is never changed while running (``navgw calibrate``,
-or the live estimate's line in the log, gives the one to configure).
+:attr:`MountingCheck.off` is set and the core sends DEGRADED (SPEC 4: a value beyond its
+stated accuracy goes out only with NAVGW_STATUS saying so) until restarted: the mounting
+does not change while the service runs, and an estimate near its bound would flicker (the
+EKF on field with a 3, -2, 4 deg mounting: off at 211 s, within at 231, off from 271). The
+mounting itself is never changed while running (``navgw calibrate``, or the live estimate's
+line in the log, gives the one to configure).
 
 Per GNSS epoch only, nothing per IMU sample; the estimate is looked at every
 ``CHECK_INTERVAL_S`` of fix time (the roll's cells are summed then). On flat ground a
@@ -73,8 +75,8 @@ class TiltOff:
 
 
 class MountingCheck:
-    """Fed each GNSS fix with the engine's solution after it; :attr:`off` while the drive
-    shows the mounting in effect tilted off the body's axes."""
+    """Fed each GNSS fix with the engine's solution after it; :attr:`off` once the drive
+    has shown the mounting in effect tilted off the body's axes."""
 
     def __init__(self, antenna_lever_arm_m: Float3, mounting_sigma_deg: float = 0.0) -> None:
         """``mounting_sigma_deg``: the configured mounting's stated roll/pitch 1-sigma
@@ -83,7 +85,7 @@ class MountingCheck:
         self.tilt = InsTilt(antenna_lever_arm_m, max_tilt_sigma_deg=LEARNT_TILT_SIGMA_DEG)
         self.mounting_sigma_deg = mounting_sigma_deg
         self.off = False
-        self.found: tuple[TiltOff, ...] = ()  # the axes off at the last look
+        self.found: tuple[TiltOff, ...] = ()  # the axes off at the last look that found any
         self._next_t: float | None = None
 
     def epoch(self, fix: GnssFix, sol: Solution) -> None:
@@ -102,20 +104,17 @@ class MountingCheck:
             )
             if off is not None
         )
-        if bool(found) != self.off:
-            if found:
-                log.warning(
-                    "t=%.1f: the IMU mounting in effect is off the vehicle's axes (%s): roll "
-                    "and pitch sent are off by as much; NAVGW_STATUS degraded. Run navgw "
-                    "calibrate on a recording of this drive, set [vehicle] "
-                    "imu_mounting_rpy_deg and restart", fix.t, "; ".join(o.text() for o in found),
-                )  # fmt: skip
-            else:
-                log.warning(
-                    "t=%.1f: the drive no longer shows the IMU mounting off; NAVGW_STATUS "
-                    "no longer degraded for it", fix.t,
-                )  # fmt: skip
-        self.off, self.found = bool(found), found
+        if found and not self.off:
+            log.warning(
+                "t=%.1f: the IMU mounting in effect is off the vehicle's axes (%s): the roll "
+                "and pitch sent are the IMU's, not the vehicle's; NAVGW_STATUS degraded "
+                "until restarted. Run navgw calibrate on a recording of this drive, set "
+                "[vehicle] imu_mounting_rpy_deg and restart", fix.t,
+                "; ".join(o.text() for o in found),
+            )  # fmt: skip
+            self.off = True
+        if found:
+            self.found = found
 
 
 def _off(axis: str, est: TiltEstimate) -> TiltOff | None:
