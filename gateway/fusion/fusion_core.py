@@ -8,7 +8,7 @@ come; frames received from the ISOBUS go to the address claim, then to the
 :class:`~gateway.isobus.network.NetworkManager` (requests, commanded address), which also
 sends the heartbeat (looked at per IMU sample and poll with one comparison). While the claim
 has seen a clone of us (our NAME, or frames from our address that we did not send),
-NAVGW_STATUS says DEGRADED; so it does while the drive shows the IMU mounting in effect
+NAVGW_STATUS says DEGRADED; so it does once the drive has shown the IMU mounting in effect
 tilted off the vehicle's axes (:mod:`gateway.fusion.mounting_check`, fed each fix with the
 engine's next solution made for the bus: none made for it alone).
 
@@ -389,7 +389,7 @@ class FusionCore:
         """``sol``, DEGRADED (or worse) while another node recently claimed our NAME or sent
         from our address: a controller cannot tell which frames with our address are ours.
         DEGRADED, not FAULT: our own solution is sound, and FAULT would say it is not. So
-        too while the mounting in effect is seen off: roll and pitch are off by it."""
+        too once the mounting in effect was seen off: roll and pitch are off by it."""
         if self.claimer.conflict(now) or (self.mounting is not None and self.mounting.off):
             return replace(sol, mode=max(sol.mode, Mode.DEGRADED))
         return sol

@@ -543,7 +543,8 @@ class GatewayService:
 
     def _mode(self) -> Mode:
         """The mode on the bus: NAVGW_STATUS's last, the engine's before the first."""
-        return self.core.told_mode or self.core.solution().mode
+        told = self.core.told_mode
+        return told if told is not None else self.core.solution().mode
 
     def status_line(self) -> str:
         """One line: mode, fix, IMU rate, GNSS, address, frames out, and what is missing."""
