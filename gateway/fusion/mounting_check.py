@@ -84,9 +84,13 @@ class MountingCheck:
         so in the roll's and pitch's sigmas here; the yaw's tilt is allowed it too."""
         self.tilt = InsTilt(antenna_lever_arm_m, max_tilt_sigma_deg=LEARNT_TILT_SIGMA_DEG)
         self.mounting_sigma_deg = mounting_sigma_deg
-        self.off = False
         self.found: tuple[TiltOff, ...] = ()  # the axes off at the last look that found any
         self._next_t: float | None = None
+
+    @property
+    def off(self) -> bool:
+        """The drive has shown the mounting off (latched: the mounting does not change)."""
+        return bool(self.found)
 
     def epoch(self, fix: GnssFix, sol: Solution) -> None:
         """One GNSS fix and the solution after it; every CHECK_INTERVAL_S, the verdict."""
@@ -104,7 +108,7 @@ class MountingCheck:
             )
             if off is not None
         )
-        if found and not self.off:
+        if found and not self.found:
             log.warning(
                 "t=%.1f: the IMU mounting in effect is off the vehicle's axes (%s): the roll "
                 "and pitch sent are the IMU's, not the vehicle's; NAVGW_STATUS degraded "
@@ -112,7 +116,6 @@ class MountingCheck:
                 "[vehicle] imu_mounting_rpy_deg and restart", fix.t,
                 "; ".join(o.text() for o in found),
             )  # fmt: skip
-            self.off = True
         if found:
             self.found = found
 
