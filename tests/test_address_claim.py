@@ -380,8 +380,16 @@ def test_a_reserved_address_is_never_taken_and_every_move_is_logged(
             node.run(0.4)
         assert node.claimer.claimed and node.claimer.address == 0x81
         assert node.claims() == [0x1C, 0x81]
+        lost = f"0x1C held by NAME 0x{OURS - 1:016X} (lower than ours"
         text = [r.getMessage() for r in caplog.records]
-        assert any("0x1C lost" in t and "claiming 0x81" in t for t in text), text
+        assert [t for t in text if lost in t and t.endswith("claiming 0x81")] == text, text
+        caplog.clear()
+        with caplog.at_level(logging.WARNING, logger="gateway.isobus.address_claim"):
+            node.start()  # the ISOBUS reopened (interface down and up): claim again
+            node.run(0.6)
+        assert node.claimer.claimed and node.claimer.address == 0x81
+        text = [r.getMessage() for r in caplog.records]  # 0x1C is taken, not 0x81
+        assert len(text) == 1 and lost in text[0] and text[0].endswith("claiming 0x81"), text
     finally:
         node.bus.shutdown()
         raw.bus.shutdown()

@@ -205,7 +205,7 @@ class AddressClaimer:
             held_by = self._others.get(self._preferred)
             if self._preferred not in self._reserved and (held_by is None or held_by > self._name):
                 return self._claim(self._preferred, now)
-            return self._claim_free_or_give_up(now)
+            return self._claim_free_or_give_up(self._preferred, now)
         if self.state is ClaimState.CLAIMING and now >= self._deadline:
             self.state = ClaimState.CLAIMED
             self.timer_t = math.inf
@@ -271,7 +271,7 @@ class AddressClaimer:
         if self._name < name:
             self._defended_until = now + CONTENTION_S
             return [self._claim_message(source, now)]  # we win: defend
-        return self._claim_free_or_give_up(now)
+        return self._claim_free_or_give_up(source, now)
 
     def _on_name_conflict(self, source: int, now: float) -> None:
         """Another node claims with our NAME: count, warn, mark the conflict."""
@@ -317,15 +317,20 @@ class AddressClaimer:
             return [self._claim_message(NULL_ADDRESS, now)]
         return []
 
-    def _claim_free_or_give_up(self, now: float) -> list[can.Message]:
+    def _claim_free_or_give_up(self, wanted: int, now: float) -> list[can.Message]:
+        """Claim the first free self-configurable address instead of ``wanted`` (held by a
+        lower NAME, or reserved), or send cannot-claim when none is free."""
         taken = self._others.keys() | self._reserved
         free = [a for a in SELF_CONFIGURABLE_ADDRESSES if a not in taken]
         if self._arbitrary and free:
-            if self.address is not None:
+            if self.address is not None:  # a first claim moves on quietly
+                held_by = self._others.get(wanted)
                 log.warning(
-                    "address claim: 0x%02X lost to NAME 0x%016X (lower than ours, 0x%016X); "
-                    "claiming 0x%02X",
-                    self.address, self._others.get(self.address, 0), self._name, free[0],
+                    "address claim: 0x%02X %s; claiming 0x%02X",
+                    wanted,
+                    "reserved (used on the bus without a claim)" if held_by is None
+                    else f"held by NAME 0x{held_by:016X} (lower than ours, 0x{self._name:016X})",
+                    free[0],
                 )  # fmt: skip
             return self._claim(free[0], now)
         log.warning(
