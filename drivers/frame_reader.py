@@ -10,12 +10,17 @@ everything else on to the handler that was there before.
 
 Overload: when the consumer falls behind and the buffer is full, the *oldest* frame is dropped
 (fresh data matter more to a navigation loop than stale data) and counted in ``dropped``.
+A consumer that finds itself behind its input calls :meth:`FrameReader.shed`: the frames as
+stale as the one in hand are dropped at the cost of a receive each, not of handling each
+(which is what it could not keep up with). On a bus read in the loop that includes those
+still in the socket's receive buffer, where a reader that is slower than its input keeps a
+backlog of up to the buffer's size (about 0.5 s of IMU frames) for good.
 """
 
 from __future__ import annotations
 
 import asyncio
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from types import TracebackType
 from typing import Any
 
@@ -45,6 +50,7 @@ class FrameReader(can.Listener):
         self.error: BaseException | None = None
         self._buffer: asyncio.Queue[can.Message] = asyncio.Queue(max_frames)
         self._notifier: can.Notifier | None = None
+        self._in_loop = False  # the notifier reads the bus in the loop (not in a thread)
 
     # --- can.Listener, called in the event loop's thread -----------------------------------
 
@@ -69,6 +75,7 @@ class FrameReader(can.Listener):
         _ErrorRouter.of(loop).add(self)
         try:
             self._notifier = can.Notifier(self.bus, [self], loop=loop)
+            self._in_loop = _has_fileno(self.bus)
         except BaseException:
             _ErrorRouter.of(loop).remove(self)
             raise
@@ -100,9 +107,47 @@ class FrameReader(can.Listener):
             self.dropped += 1
         self._buffer.put_nowait(msg)
 
+    def shed(
+        self, before: float, keep: Callable[[can.Message], bool] = lambda msg: False
+    ) -> list[can.Message]:
+        """Drop the frames stamped before ``before`` (the bus's clock) but those ``keep``
+        wants, from the buffer and, read in the loop, from the socket up to the first newer
+        frame; the others stay in order. Returns the frames dropped, in order."""
+        kept: list[can.Message] = []
+        dropped: list[can.Message] = []
+        while not self._buffer.empty():
+            msg = self._buffer.get_nowait()
+            stale = msg is not _FAILED and msg.timestamp < before and not keep(msg)
+            (dropped if stale else kept).append(msg)
+        behind = not kept or (kept[-1] is not _FAILED and kept[-1].timestamp < before)
+        failure: BaseException | None = None
+        while self._in_loop and behind and self.error is None:
+            try:
+                received = self.bus.recv(0)
+            except (can.CanError, OSError) as exc:
+                failure = exc
+                break
+            if received is None:
+                break
+            behind = received.timestamp < before
+            (dropped if behind and not keep(received) else kept).append(received)
+        for msg in kept:
+            self._put(msg)
+        if failure is not None:
+            self.fail(failure)  # the iteration ends after the frames kept
+        return dropped
+
     def owns(self, notifier: object) -> bool:
         """True if ``notifier`` is this reader's (to route a loop-mode receive error)."""
         return notifier is not None and notifier is self._notifier
+
+
+def _has_fileno(bus: can.BusABC) -> bool:
+    """True if can.Notifier reads ``bus`` in the event loop (it has a file descriptor)."""
+    try:
+        return bus.fileno() >= 0
+    except NotImplementedError:
+        return False
 
 
 class _ErrorRouter:

@@ -22,6 +22,7 @@ import atexit
 import pytest
 
 from tests.cpu_load import CpuLoad, from_environment
+from tests.multicast import multicast_port  # noqa: F401 - a fixture for every test module
 
 #: Live tests in modules that are not live as a whole (node ids relative to the rootdir).
 LIVE_TESTS = frozenset(
@@ -30,6 +31,9 @@ LIVE_TESTS = frozenset(
         "tests/test_service.py::test_service_reopens_a_bus_that_goes_away_and_claims_again",
         # the service's frame reader and its notifier thread, timed by a sleep
         "tests/test_service.py::test_reader_drops_oldest_when_full_and_ends_with_bus_error",
+        "tests/test_service.py::test_reader_sheds_stale_frames_from_its_buffer_and_socket_in_order",
+        "tests/test_service.py::"
+        "test_a_reader_held_up_once_sheds_the_stale_frames_and_one_behind_again_its_backlog",
         # `navgw run` as a subprocess: READY, WATCHDOG every 0.2 s (< 0.45 s apart), STOPPING
         "tests/test_sdnotify.py::test_missing_devices_ready_watchdog_status_then_clean_stop",
     }

@@ -4,8 +4,6 @@ from __future__ import annotations
 
 import asyncio
 import itertools
-import json
-import random
 import subprocess
 import sys
 import time
@@ -24,6 +22,8 @@ from gateway.config.gateway_config import GatewayConfig, ImuSection, example_tom
 from gateway.isobus.j1939 import Pgn, can_id
 from gateway.service.bus_links import BusPlan, EchoFilter, claim_filters, is_bus_down
 from gateway.service.live_loop import GatewayService, Inbox
+from gateway.service.timebase import TimeBase
+from tests.multicast import GROUP
 
 REPO = Path(__file__).resolve().parents[1]
 _channels = itertools.count()
@@ -64,6 +64,85 @@ def test_reader_drops_oldest_when_full_and_ends_with_bus_error() -> None:
     got, dropped, error = asyncio.run(main())
     assert got == [6, 7, 8, 9] and dropped == 6  # the newest frames are kept
     assert isinstance(error, BusError) and "failed" in str(error)
+
+
+@pytest.mark.parametrize("interface", ["virtual", "udp_multicast"])
+def test_reader_sheds_stale_frames_from_its_buffer_and_socket_in_order(
+    interface: str, request: pytest.FixtureRequest
+) -> None:
+    """``shed`` drops the frames stamped before a time but those wanted, from the buffer
+    and (udp_multicast: read in the loop) from the socket up to the first newer frame."""
+    ch = GROUP if interface == "udp_multicast" else channel()
+    if interface == "udp_multicast":
+        request.getfixturevalue("multicast_port")
+    claim_id = can_id(Pgn.ADDRESS_CLAIM, 0x40, 6)
+
+    async def main() -> tuple[list[int], list[int], int]:
+        with (
+            can.Bus(interface=interface, channel=ch) as rx,
+            can.Bus(interface=interface, channel=ch) as tx,
+        ):
+            async with FrameReader(rx) as reader:
+                # the loop is held up: nothing is read while these arrive
+                for i in range(10):
+                    tx.send(frame(i, claim_id if i == 4 else 0x0CFF1080))
+                time.sleep(0.05)
+                before = time.time()
+                time.sleep(0.01)
+                for i in range(10, 13):
+                    tx.send(frame(i))
+                if interface == "virtual":  # the notifier's thread hands them to the loop
+                    await asyncio.sleep(0.5)
+                else:
+                    time.sleep(0.1)  # in the socket, unread
+                dropped = reader.shed(before, keep=lambda m: m.arbitration_id == claim_id)
+                left = [(await asyncio.wait_for(reader.__anext__(), 1.0)).data[0] for _ in range(4)]
+                return [m.data[0] for m in dropped], left, reader.dropped
+
+    dropped, left, overflowed = asyncio.run(main())
+    assert dropped == [0, 1, 2, 3, 5, 6, 7, 8, 9]
+    assert left == [4, 10, 11, 12] and overflowed == 0
+
+
+def test_a_reader_held_up_once_sheds_the_stale_frames_and_one_behind_again_its_backlog(
+    multicast_port: int,
+) -> None:
+    """The service's shedding of IMU frames read MAX_SAMPLE_AGE_S late (udp_multicast, read
+    in the loop and stamped on arrival as SocketCAN): the first time, only those as stale
+    (the core would drop no other); again within SHED_AGAIN_S, the whole backlog. The service
+    clock runs at a tenth of the wall clock, so the ages are whole seconds of wall time."""
+    config = GatewayConfig(imu=ImuSection(interface="udp_multicast", channel=GROUP))
+    service = GatewayService(config, timebase=TimeBase(speed=0.1))
+    link = service.links[0]
+
+    async def main() -> list[int]:
+        shed = []
+        with link.spec.open() as rx, can.Bus(interface="udp_multicast", channel=GROUP) as tx:
+            async with FrameReader(rx) as reader:
+                link.bus, link.reader, link.host_stamps = rx, reader, True
+
+                def send(first: int, end: int) -> None:
+                    for i in range(first, end):
+                        tx.send(frame(i))
+
+                async def read_one() -> None:
+                    msg = await asyncio.wait_for(reader.__anext__(), 1.0)
+                    service._on_frame(link, msg)
+                    shed.append(service.stats.frames_shed)
+
+                send(0, 10)
+                time.sleep(1.5)  # the loop held up: 0-9 are 0.15 s of service time old
+                send(10, 20)
+                await read_one()  # 0 read late: 0-9 shed, 10-19 kept
+                time.sleep(1.2)  # held up again: 10-19 stale now
+                send(20, 25)
+                await read_one()  # 10 read late again: the backlog shed, 20-24 with it
+                with pytest.raises(TimeoutError):  # nothing left behind
+                    await asyncio.wait_for(reader.__anext__(), 0.5)
+        return shed
+
+    assert asyncio.run(main()) == [10, 10 + 10 + 5]
+    assert service.imu_decoder.counters.frames == 0  # none was decoded
 
 
 def test_claim_filters_pass_claims_requests_and_frames_from_our_address() -> None:
@@ -160,29 +239,6 @@ def test_service_reopens_a_bus_that_goes_away_and_claims_again(tmp_path: Path) -
 
     claims, reopens, status = asyncio.run(main())
     assert (claims, reopens, status) == (2, 1, 0)
-
-
-GROUP = "239.74.163.2"  # python-can's udp_multicast default group; the port is the test's own
-
-
-@pytest.fixture
-def multicast_port(monkeypatch: pytest.MonkeyPatch) -> int:
-    """A udp_multicast port of the test's own (through CAN_CONFIG, as python-can reads it);
-    skips where the group does not loop back within the process."""
-    port = random.randrange(44000, 44999)
-    monkeypatch.setenv("CAN_CONFIG", json.dumps({"port": port}))
-    try:
-        with (
-            can.Bus(interface="udp_multicast", channel=GROUP) as a,
-            can.Bus(interface="udp_multicast", channel=GROUP) as b,
-        ):
-            a.send(frame(0))
-            looped = b.recv(1.0) is not None
-    except (can.CanError, OSError) as exc:
-        pytest.skip(f"udp_multicast not available here: {exc}")
-    if not looped:
-        pytest.skip("udp_multicast does not loop back here (route the group to lo)")
-    return port
 
 
 async def until(condition: Callable[[], object], timeout_s: float = 3.0) -> None:

@@ -66,6 +66,7 @@ def summary(**values: object) -> DemoSummary:
         "gnss_fixes": 600,
         "frames_sent": 15000,
         "inputs_dropped": 0,
+        "frames_shed": 0,
         "final_mode": Mode.ALIGNING,
         "navigating_after_s": None,
         "bias_g_error_dps": (0.01, -0.02, 0.003),
@@ -91,5 +92,14 @@ def test_demo_summary_of_a_run_too_short_to_measure_says_so_without_nan() -> Non
     for line in ("bias error  not measured", "attitude    RMS error not measured"):
         assert line in text
     measured = summary().text()
+    assert "could not keep up" not in measured
     assert "gyro x +0.0100 y -0.0200 z +0.0030 deg/s" in measured
     assert "roll 0.100, pitch 0.200, heading 0.300 deg" in measured
+
+
+@pytest.mark.parametrize(("dropped", "shed"), [(121, 0), (0, 242), (61, 122)])
+def test_demo_summary_says_when_the_host_could_not_keep_up(dropped: int, shed: int) -> None:
+    """More than 1 % of the IMU input shed as stale, samples at the core or frames read."""
+    text = summary(inputs_dropped=dropped, frames_shed=shed).text()
+    assert "could not keep up" in text and f"{shed} frames read too late shed" in text
+    assert "could not keep up" not in summary(inputs_dropped=60, frames_shed=118).text()

@@ -114,7 +114,8 @@ class DemoSummary:
     imu_lost: int
     gnss_fixes: int
     frames_sent: int
-    inputs_dropped: int
+    inputs_dropped: int  # IMU samples that reached the core too late
+    frames_shed: int  # IMU frames read too late, shed undecoded (their samples counted lost)
     final_mode: Mode
     navigating_after_s: float | None  # simulated seconds from the start
     bias_g_error_dps: tuple[float, float, float]  # final estimate minus truth, deg/s
@@ -135,7 +136,8 @@ class DemoSummary:
             f"{self.final_mode.name.lower()}, navigating after {nav}",
             f"  inputs      {self.imu_samples} IMU samples ({self.imu_lost} lost), "
             f"{self.gnss_fixes} GNSS fixes, {self.inputs_dropped} dropped by overload (IMU "
-            "samples the gateway got too late to use)",
+            f"samples the gateway got too late to use; {self.frames_shed} frames read too late "
+            "shed, their samples counted lost)",
             f"  output      {self.frames_sent} frames on the ISOBUS -> {self.output_log}",
             f"  bias error  gyro x {g[0]:+.4f} y {g[1]:+.4f} z {g[2]:+.4f} deg/s, "
             f"accel x {a[0]:+.4f} y {a[1]:+.4f} m/s^2 (final estimate minus truth)"
@@ -155,7 +157,7 @@ class DemoSummary:
             if self.plot
             else f"  plot        skipped: {self.plot_note}",
         ]
-        if self.inputs_dropped > 0.01 * max(self.imu_samples, 1):
+        if self.inputs_dropped + self.frames_shed / 2 > 0.01 * max(self.imu_samples, 1):
             lines.append(
                 "  note        this host could not keep up with the demo's speed: the gateway "
                 "drops IMU samples it gets too late to send (stale frames would be wrong "
@@ -329,6 +331,7 @@ def summarise(
         gnss_fixes=core.gnss_fixes,
         frames_sent=service.stats.frames_sent,
         inputs_dropped=service.core.stats.imu_dropped,
+        frames_shed=service.stats.frames_shed,
         final_mode=service.core.solution().mode,
         navigating_after_s=nav[0] if nav else None,
         bias_g_error_dps=g_err,

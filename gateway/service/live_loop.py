@@ -7,7 +7,10 @@ is fast and runs inline):
   retrying
   with back-off while it is absent or down, reads it through
   :class:`~drivers.frame_reader.FrameReader`, stamps each frame with the service time, records and
-  decodes IMU frames into the inbox, and hands address claims, requests and frames from our
+  decodes IMU frames into the inbox (an IMU frame read :data:`MAX_SAMPLE_AGE_S` after it
+  arrived, the reader is behind: the stale IMU frames are shed undecoded, the whole backlog if
+  it happens again soon, and it goes on with fresh ones), and hands address claims, requests
+  and frames from our
   own address (not our own echo) to the core at once: a lower NAME that takes our address
   must silence us as soon as its claim is read, not after the IMU backlog queued before it.
   The ISOBUS filters follow our address, so that another node sending from it is seen;
@@ -91,6 +94,9 @@ HOLD_MAX_S = 0.2  # a GNSS fix waits at most this long for the IMU to reach its 
 #: what it would send is stale (5 s of backlog put the tractor 15 m back), and shedding it
 #: lets the core catch up; the engine bridges the gap and says DEGRADED if it is long.
 MAX_SAMPLE_AGE_S = 0.1
+#: A reader that sheds stale IMU frames again within this long is slower than its input (not
+#: held up once): it sheds its whole backlog, service seconds.
+SHED_AGAIN_S = 1.0
 STATUS_INTERVAL_S = 2.0  # sd_notify STATUS, wall seconds
 HEARTBEAT_MAX_S = 2.0  # the tick or the core stalled this long (wall): unhealthy
 CLOCK_MISMATCH_S = 5.0  # frame timestamps this far from the host clock are not host time
@@ -180,6 +186,7 @@ class ServiceStats:
     frames_unsent: int = 0  # output while the ISOBUS was not open, or after stop
     can_frames_dropped: int = 0  # receive buffers full (the loop starved), closed readers
     stale_samples: int = 0  # IMU samples dropped for arriving at the core too late
+    frames_shed: int = 0  # IMU frames dropped undecoded for being read too late
     imu_rate_hz: float = 0.0  # IMU samples per service second, over the last STATUS interval
 
 
@@ -242,6 +249,7 @@ class GatewayService:
         self._held: deque[GnssFix] = deque()  # fixes waiting for the IMU stream
         self._send_log = LogLimiter(log)
         self._stale_log = LogLimiter(log)
+        self._shed_at = -math.inf  # host time of the last shedding of stale IMU frames
 
     # --- life cycle -----------------------------------------------------------------------
 
@@ -476,8 +484,11 @@ class GatewayService:
         arrival time: read late, behind a backlog, it is still ours (not a spoofed frame)."""
         host_time = self._host_time(link, msg)
         msg.timestamp = self.timebase.at(host_time)
-        if link.imu and msg.arbitration_id & PGN_SA_MASK in self._imu_ids:
+        if link.imu and self._is_imu(msg):
             self._last_imu_t = msg.timestamp
+            if link.host_stamps and self.timebase.now() - msg.timestamp > MAX_SAMPLE_AGE_S:
+                self._shed(link, msg)
+                return
             if self.recorder is not None:
                 self.recorder.can(msg)
             for item in self.imu_decoder.feed(msg):
@@ -485,6 +496,39 @@ class GatewayService:
                     self.core.stats.imu_dropped += 1
         elif link.isobus and not self.echo.is_echo(msg, host_time):
             self._send(self.core.on_bus_frame(msg, msg.timestamp))
+
+    def _is_imu(self, msg: can.Message) -> bool:
+        """True for a frame of the IMU bridge's (its ids, any source address)."""
+        return msg.arbitration_id & PGN_SA_MASK in self._imu_ids
+
+    def _shed(self, link: BusLink, msg: can.Message) -> None:
+        """Drop ``msg``, an IMU frame read MAX_SAMPLE_AGE_S after it arrived, and the IMU
+        frames behind it as stale, undecoded (the core would drop their samples): a reader
+        held up once catches up at the cost of a receive per stale frame. Shedding again
+        within :data:`SHED_AGAIN_S`, it is slower than its input: then the whole backlog
+        goes, and it starts afresh. Decoding every frame, such a reader stayed a socket
+        buffer behind and no sample reached the engine for 20 s (an emulated guest on a busy
+        CI host); shedding only the stale ones, it stayed at the edge, and what it decoded
+        was stale at the core. The IMU decoder counts their samples lost (NAVGW_STATUS
+        byte 6); the recording keeps them, as the bus carried them."""
+        assert link.reader is not None
+        now = time.time()
+        again = now - self._shed_at < self.timebase.wall_s(SHED_AGAIN_S)
+        self._shed_at = now
+        before = now if again else now - self.timebase.wall_s(MAX_SAMPLE_AGE_S)
+        shed = link.reader.shed(before, keep=lambda m: not self._is_imu(m))
+        self.stats.frames_shed += 1 + len(shed)
+        if self.recorder is not None:
+            self.recorder.can(msg)
+            for frame in shed:
+                frame.timestamp = self.timebase.at(frame.timestamp)
+                self.recorder.can(frame)
+        self._stale_log.warning(
+            time.monotonic(),
+            f"fusion loop behind: IMU frames read more than {MAX_SAMPLE_AGE_S:g} s after they "
+            f"arrived shed undecoded ({self.stats.frames_shed} in all)",
+            "shed",
+        )
 
     def _host_time(self, link: BusLink, msg: can.Message) -> float:
         """The frame's arrival time; the host clock if the interface stamps another clock.
@@ -564,6 +608,8 @@ class GatewayService:
             parts.append(f"{self.inbox.overloads} inputs dropped (overload)")
         if self.stats.stale_samples:
             parts.append(f"{self.stats.stale_samples} stale IMU samples dropped")
+        if self.stats.frames_shed:
+            parts.append(f"{self.stats.frames_shed} stale IMU frames shed")
         if self.core.guard.withheld:
             parts.append(f"{self.core.guard.withheld} implausible outputs withheld")
         if self.stats.send_errors:

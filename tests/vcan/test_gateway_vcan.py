@@ -14,6 +14,7 @@ higher and a lower NAME, a node sending from our address, and a commanded addres
 from __future__ import annotations
 
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -37,6 +38,7 @@ from gateway.service.timebase import TimeBase
 from sim_bus.nmea_player import NmeaPlayer
 from sim_bus.truth import Truth
 from tests.n2k_check import (
+    STATUS_PGN,
     Plausible,
     attitude_errors_deg,
     cadence_problems,
@@ -248,13 +250,17 @@ def test_gateway_output_on_vcan_decodes_to_the_truth(session: Session, tmp_path:
 
 
 def _overloaded(session: Session) -> bool:
-    """The guest could not keep up, and the gateway said so: it shed IMU samples it got too
-    late, enough to leave a gap its engine bridged, and said DEGRADED (in sd_notify STATUS or
-    in its log: STATUS lines are few when the guest crawls). A few samples shed one by one
-    leave no gap longer than MAX_IMU_STEP_S: then the gateway kept up and is not DEGRADED
-    (a CI run shed 2)."""
-    said = [*session.notify, *session.stderr.splitlines()]
-    return "stale IMU samples dropped" in session.stderr and any("degraded" in s for s in said)
+    """The guest could not keep up: the gateway shed more than 1 % of the IMU input as stale
+    (frames read, or samples reaching its core, MAX_SAMPLE_AGE_S after they arrived), by its
+    last word. Then it bridged gaps and said DEGRADED, or FAULT while it could not align;
+    that it sent nothing wrong meanwhile is checked whatever the load. A few samples shed
+    one by one leave no gap: a gateway that kept up is held to rate and accuracy (a CI run
+    shed 2)."""
+    counts = {
+        what: int(n) for n, what in re.findall(r"(\d+) stale IMU (samples|frames)", session.stderr)
+    }  # the last of each: the stop line
+    shed_frames = 2 * counts.get("samples", 0) + counts.get("frames", 0)
+    return shed_frames > 0.01 * sum(1 for _ in read_candump(session.inputs))
 
 
 def _said(session: Session) -> str:
@@ -310,8 +316,14 @@ def test_a_request_for_address_claim_is_answered(session: Session) -> None:
 def test_interface_down_and_up_is_survived_and_sending_resumes(session: Session) -> None:
     assert session.returncode == 0
     assert "CAN" in session.stderr and "vcan1" in session.stderr
-    resumed = [m for m in read_candump(session.recordings[1]) if m.arbitration_id >> 8 == 0x09F113]
-    assert len(resumed) > 50, _said(session)  # attitude frames again after vcan1 came back
+    after = [m for m in read_candump(session.recordings[1]) if m.arbitration_id & 0xFF == 0x81]
+    # after vcan1 came back: claimed again (0x1C stays the other node's), NAVGW_STATUS again
+    assert 0x18EEFF81 in {m.arbitration_id for m in after}, _said(session)
+    status = [m for m in after if (m.arbitration_id >> 8) & 0x3FFFF == STATUS_PGN]
+    assert len(status) > 20, _said(session)
+    # ... and the attitude, unless the guest could not keep up (then it says so in STATUS)
+    resumed = [m for m in after if m.arbitration_id >> 8 == 0x09F113]
+    assert len(resumed) > 50 or _overloaded(session), _said(session)
     assert any(line.startswith("STATUS=") for line in session.notify)
 
 
