@@ -39,6 +39,19 @@ SECONDS = 60.0  # of the short run: rest, alignment, then driving
 SLOW_S = 0.0016
 
 
+async def serve_while_playing(
+    service: GatewayService, pb: SyncedPlayback, isobus: can.BusABC, writer: CandumpWriter
+) -> None:
+    """Run ``service`` while ``pb`` plays, its ISOBUS output written; then stop it cleanly."""
+    with can.Notifier(isobus, [OutputLog(writer, service.timebase)]):
+        running = asyncio.create_task(service.run())
+        while not pb.wait(0):
+            await asyncio.sleep(0.1)
+        await asyncio.sleep(0.3)
+        service.request_stop()
+        assert await running == 0
+
+
 def busy_wait(seconds: float) -> None:
     end = time.perf_counter() + seconds
     while time.perf_counter() < end:
@@ -96,13 +109,7 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
 
             service.core.engine.imu = slow_imu  # type: ignore[method-assign]
             service.core.on_input = watch  # type: ignore[method-assign,assignment]
-            with can.Notifier(isobus, [OutputLog(writer, timebase)]):
-                running = asyncio.create_task(service.run())
-                while not pb.wait(0):
-                    await asyncio.sleep(0.1)
-                await asyncio.sleep(0.3)
-                service.request_stop()
-                assert await running == 0
+            await serve_while_playing(service, pb, isobus, writer)
         return service
 
     service = asyncio.run(main())
@@ -166,13 +173,7 @@ def test_a_reader_slower_than_its_input_sheds_what_is_stale_and_keeps_sending(
                 return feed(msg)
 
             service.imu_decoder.feed = slow_feed  # type: ignore[method-assign]
-            with can.Notifier(isobus, [OutputLog(writer, timebase)]):
-                running = asyncio.create_task(service.run())
-                while not pb.wait(0):
-                    await asyncio.sleep(0.1)
-                await asyncio.sleep(0.3)
-                service.request_stop()
-                assert await running == 0
+            await serve_while_playing(service, pb, isobus, writer)
         return service
 
     service = asyncio.run(main())
