@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import random
+import time
 
 import can
 import pytest
@@ -29,3 +30,18 @@ def multicast_port(monkeypatch: pytest.MonkeyPatch) -> int:
     if not looped:
         pytest.skip("udp_multicast does not loop back here (route the group to lo)")
     return port
+
+
+def until_stamped_on_arrival(tx: can.BusABC, rx: can.BusABC, timeout_s: float = 5.0) -> None:
+    """Wait until ``rx`` gets ``tx``'s frames stamped on arrival. Linux turns receive time
+    stamps on for the first socket that asks, in deferred work: until then a frame carries
+    the time it was read (the first frames after opening came 0.11 s "late" in one run of
+    five, held in the socket 0.11 s)."""
+    deadline = time.monotonic() + timeout_s
+    while time.monotonic() < deadline:
+        tx.send(can.Message(arbitration_id=0x7FF, is_extended_id=False))
+        time.sleep(0.05)
+        msg = rx.recv(1.0)
+        if msg is not None and time.time() - msg.timestamp > 0.04:
+            return
+    raise AssertionError(f"udp_multicast frames not stamped on arrival within {timeout_s} s")

@@ -23,7 +23,7 @@ from gateway.isobus.j1939 import Pgn, can_id
 from gateway.service.bus_links import BusPlan, EchoFilter, claim_filters, is_bus_down
 from gateway.service.live_loop import GatewayService, Inbox
 from gateway.service.timebase import TimeBase
-from tests.multicast import GROUP
+from tests.multicast import GROUP, until_stamped_on_arrival
 
 REPO = Path(__file__).resolve().parents[1]
 _channels = itertools.count()
@@ -82,6 +82,8 @@ def test_reader_sheds_stale_frames_from_its_buffer_and_socket_in_order(
             can.Bus(interface=interface, channel=ch) as rx,
             can.Bus(interface=interface, channel=ch) as tx,
         ):
+            if interface == "udp_multicast":
+                until_stamped_on_arrival(tx, rx)
             async with FrameReader(rx) as reader:
                 # the loop is held up: nothing is read while these arrive
                 for i in range(10):
@@ -118,6 +120,7 @@ def test_a_reader_held_up_once_sheds_the_stale_frames_and_one_behind_again_its_b
     async def main() -> list[int]:
         shed = []
         with link.spec.open() as rx, can.Bus(interface="udp_multicast", channel=GROUP) as tx:
+            until_stamped_on_arrival(tx, rx)
             async with FrameReader(rx) as reader:
                 link.bus, link.reader, link.host_stamps = rx, reader, True
 
