@@ -107,9 +107,7 @@ class FrameReader(can.Listener):
             self.dropped += 1
         self._buffer.put_nowait(msg)
 
-    def shed(
-        self, before: float, keep: Callable[[can.Message], bool] = lambda msg: False
-    ) -> list[can.Message]:
+    def shed(self, before: float, keep: Callable[[can.Message], bool]) -> list[can.Message]:
         """Drop the frames stamped before ``before`` (the bus's clock) but those ``keep``
         wants, from the buffer and, read in the loop, from the socket up to the first newer
         frame; the others stay in order. Returns the frames dropped, in order."""
