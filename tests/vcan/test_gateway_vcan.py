@@ -52,7 +52,8 @@ from tests.notify_socket import NotifySocket
 from tests.vcan.conftest import candump_argv
 
 REPO = Path(__file__).resolve().parents[2]
-GYRO_ID = 0x0CFF1080
+IMU_BRIDGE_SA = 0x80
+GYRO_ID = 0x0CFF1000 | IMU_BRIDGE_SA
 COMPETING_CLAIM = "18EEFF1C#0000000000000000"  # NAME 0 wins any contention for 0x1C
 REQUEST_FOR_CLAIM = "18EAFFFE#00EE00"  # from the null address to all
 # wall seconds after the first IMU frame (navigating from ~20 s of the 78 s run)
@@ -84,15 +85,20 @@ class Session:
     log_minus_wall_s: float = 0.0  # log time of a wall-clock time is wall + this
 
     def frames(self) -> list[can.Message]:
-        return [m for path in self.recordings for m in read_candump(path)]
+        return [m for path in self.recordings for m in _on_vcan1(path)]
 
     def in_log_time(self, path: Path, out: Path) -> Path:
         """A recording re-stamped from wall-clock time to the logs' (and truth's) time."""
         with CandumpWriter(out, "vcan1") as writer:
-            for m in read_candump(path):
+            for m in _on_vcan1(path):
                 m.timestamp += self.log_minus_wall_s
                 writer.write(m)
         return out
+
+
+def _on_vcan1(path: Path) -> Iterator[can.Message]:
+    """The frames on vcan1 in a recording (the second one records every interface)."""
+    return (m for m in read_candump(path) if m.channel == "vcan1")
 
 
 def _ip(*args: str) -> None:
@@ -101,6 +107,22 @@ def _ip(*args: str) -> None:
 
 def _candump(channel: str, path: Path) -> subprocess.Popen[bytes]:
     return subprocess.Popen(candump_argv(channel, "-L"), stdout=path.open("w"))
+
+
+def _candump_while_down(path: Path) -> subprocess.Popen[bytes]:
+    """candump recording vcan1 from before it comes up again, listening once this returns.
+
+    The gateway reopens vcan1 and claims within milliseconds of its coming up, sooner than a
+    candump started then is listening on a slow guest (a CI run missed the claim). A socket
+    bound to a down interface fails (ENETDOWN), so this one listens on all interfaces, less
+    the IMU bridge's frames (source 0x80) on vcan0; ``Session.frames`` keeps vcan1's.
+    """
+    dump = _candump(f"any,{IMU_BRIDGE_SA:08X}~000000FF", path)
+    deadline = time.monotonic() + T_UP - T_DOWN
+    while "any " not in Path("/proc/net/can/rcvlist_inv").read_text().replace("any:", ""):
+        assert time.monotonic() < deadline and dump.poll() is None, "candump is not listening"
+        time.sleep(0.05)
+    return dump
 
 
 @pytest.fixture(scope="module")
@@ -157,9 +179,9 @@ def session(vcan0: str, sim_run: Path, tmp_path_factory: pytest.TempPathFactory)
             at("down", T_DOWN)
             dump.terminate()
             _ip("link", "set", "down", "vcan1")
+            dump = _candump_while_down(recordings[1])
             at("up", T_UP)
             _ip("link", "set", "up", "vcan1")
-            dump = _candump("vcan1", recordings[1])
             canplayer.wait(timeout=180)
             time.sleep(1.0)
             gateway.send_signal(signal.SIGTERM)
@@ -316,7 +338,7 @@ def test_a_request_for_address_claim_is_answered(session: Session) -> None:
 def test_interface_down_and_up_is_survived_and_sending_resumes(session: Session) -> None:
     assert session.returncode == 0
     assert "CAN" in session.stderr and "vcan1" in session.stderr
-    after = [m for m in read_candump(session.recordings[1]) if m.arbitration_id & 0xFF == 0x81]
+    after = [m for m in _on_vcan1(session.recordings[1]) if m.arbitration_id & 0xFF == 0x81]
     # after vcan1 came back: claimed again (0x1C stays the other node's), NAVGW_STATUS again
     assert 0x18EEFF81 in {m.arbitration_id for m in after}, _said(session)
     status = [m for m in after if (m.arbitration_id >> 8) & 0x3FFFF == STATUS_PGN]
