@@ -6,9 +6,10 @@ the encoders under test.
 
 from __future__ import annotations
 
+import bisect
 import itertools
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -16,6 +17,7 @@ import numpy as np
 import numpy.typing as npt
 from nmea2000 import NMEA2000Decoder
 
+import dbc
 from drivers.logs.candump import read_candump
 from gateway.demo.accuracy import attitude_error_rad, truth_at
 from sim_bus.truth import Truth
@@ -131,6 +133,59 @@ def status_modes(path: str | Path) -> list[tuple[float, int]]:
     ]
 
 
+def _degraded_near(status: list[tuple[float, int]]) -> Callable[[float], bool]:
+    """Whether a NAVGW_STATUS within 0.1 s of a time says DEGRADED or FAULT (SPEC 4: a value
+    may be off while STATUS says so, from the same instant)."""
+    told = np.array([t for t, mode in status if mode >= DEGRADED])
+    return lambda t: bool(len(told)) and bool(np.min(np.abs(told - t)) <= 0.1)
+
+
+def stated_sigma_deg(log: str | Path) -> list[tuple[float, float | None]]:
+    """(time, SIGMA_TILT deg or None when not available) of every NAVGW_STATUS frame,
+    decoded by cantools with the project's DBC."""
+    status = dbc.load(dbc.OUTPUT_DBC).get_message_by_name("NAVGW_STATUS")
+    out = []
+    for frame in read_candump(log):
+        if (frame.arbitration_id >> 8) & 0x3FFFF == STATUS_PGN:
+            values = status.decode(bytes(frame.data), decode_choices=False)
+            assert isinstance(values, dict)
+            sigma = values["SIGMA_TILT"]
+            out.append((float(frame.timestamp), sigma if isinstance(sigma, float) else None))
+    return out
+
+
+def tilt_beyond_stated(
+    log: str | Path, truth: Truth, lag_s: float = 0.0, margin_deg: float = 0.1
+) -> tuple[int, list[str]]:
+    """The never-lie check of roll and pitch: the attitude frames (127257) that state an
+    accuracy, and one line for each whose roll or pitch is farther than ``margin_deg`` + 3
+    sigma from the truth everywhere in ``[t - lag_s, t]`` (a live frame is stamped when
+    received). Sigma is the SIGMA_TILT of the last NAVGW_STATUS before the frame; a frame
+    within 0.1 s of a STATUS saying DEGRADED or FAULT, or after one stating no accuracy,
+    claims none and is not counted."""
+    status = stated_sigma_deg(log)
+    times = [t for t, _ in status]
+    excused = _degraded_near(status_modes(log))
+    checked, beyond = 0, []
+    for m in decode_log(log):
+        roll, pitch = _number(m.fields.get("roll")), _number(m.fields.get("pitch"))
+        if m.id != "attitude" or roll is None or pitch is None or excused(m.t):
+            continue
+        i = bisect.bisect_right(times, m.t) - 1
+        sigma = status[i][1] if i >= 0 else None
+        if sigma is None:
+            continue
+        checked += 1
+        lo, hi = np.searchsorted(truth.t, [m.t - lag_s, m.t], side="right")
+        w = slice(max(int(lo) - 1, 0), max(int(hi), 1))
+        off = [float(np.degrees(np.min(np.abs(v - truth.rpy_rad[w, k]))))
+               for k, v in enumerate((roll, pitch))]  # fmt: skip
+        if max(off) > margin_deg + 3.0 * sigma:
+            beyond.append(f"t={m.t - truth.t[0]:.3f} s roll/pitch {off[0]:.2f}/{off[1]:.2f} "
+                          f"deg off, {sigma:.2f} deg stated")  # fmt: skip
+    return checked, beyond
+
+
 def implausible_frames(
     messages: list[Decoded],
     truth: Truth,
@@ -162,10 +217,7 @@ def implausible_frames(
     def angle_off_deg(value: float, true: npt.NDArray[np.float64]) -> float:
         return float(np.degrees(np.min(np.abs((value - true + np.pi) % (2 * np.pi) - np.pi))))
 
-    told = np.array([t for t, mode in status or () if mode >= DEGRADED])
-
-    def excused(t: float) -> bool:
-        return bool(len(told)) and bool(np.min(np.abs(told - t)) <= 0.1)
+    excused = _degraded_near(status or [])
 
     def bad(m: Decoded, text: str) -> None:
         out.append(f"t={m.t - t_truth[0]:.3f} s {m.pgn} {m.id}: {text}")

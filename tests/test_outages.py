@@ -35,8 +35,7 @@ from tests.kinematics import (
     motion_time,
     state_at,
 )
-from tests.n2k_check import Decoded, decode_log
-from tests.test_tilt_sigma_honest import stated_sigma_deg
+from tests.n2k_check import Decoded, decode_log, stated_sigma_deg
 
 LEVER = (0.5, 0.0, -3.0)
 STATUS_ID = 0x18FF221C

@@ -48,6 +48,7 @@ from tests.n2k_check import (
     pauses,
     position_errors_m,
     status_modes,
+    tilt_beyond_stated,
 )
 from tests.notify_socket import NotifySocket
 
@@ -197,7 +198,9 @@ def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Pa
     # counted, itself (a full buffer, or shed as stale: no false losses)
     imu, stats, core = service.imu_decoder.counters, service.stats, service.core.stats
     counts = (imu, stats, core)
-    assert imu.samples + imu.lost + imu.out_of_order == pytest.approx(80 * IMU_HZ, abs=3), counts
+    # (frames shed at the very end are not yet counted lost: no later SEQ showed the gap)
+    unaccounted = 80 * IMU_HZ - (imu.samples + imu.lost + imu.out_of_order)
+    assert -3 <= unaccounted <= 3 + stats.frames_shed / 2, counts
     assert imu.lost <= stats.can_frames_dropped + stats.frames_shed, counts
     assert imu.duplicates == imu.out_of_order == 0, counts
     # every sample decoded reached the engine or was dropped by the live loop, and counted
@@ -210,10 +213,14 @@ def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Pa
     final = final_mode(out_log, truth.t[0] + 80.0)
     assert final is Mode.NAVIGATING or (final is not Mode.FAULT and not kept_up), (final, counts)
     check_output(live, truth, 80.0 - 0.5, speed=8.0, kept_up=kept_up)
-    err = attitude_errors_deg(live, truth, after_s=ALIGNED_S)
-    err = err[np.isfinite(err[:, :2]).all(axis=1)]  # what it sent (all of it, if it kept up)
-    if kept_up or len(err):
-        rms = np.sqrt(np.mean(err**2, axis=0))
+    # what it sent is within the accuracy it stated, loaded or not (a few frames may be beyond
+    # 3 sigma by chance); one that fell behind may have re-aligned on the move, and then said
+    # it was less accurate: it is held to accuracy only if it kept up
+    checked, beyond = tilt_beyond_stated(out_log, truth, lag_s=MAX_GAP_WALL_S * 8.0)
+    assert checked > 500 and len(beyond) <= 0.005 * checked, beyond[:20]
+    if kept_up:
+        err = attitude_errors_deg(live, truth, after_s=ALIGNED_S)
+        rms = np.sqrt(np.mean(err[np.isfinite(err[:, :2]).all(axis=1)] ** 2, axis=0))
         assert rms[0] < 1.0 and rms[1] < 1.0, rms  # roll, pitch (live, 8x the host's jitter)
         assert np.nanmedian(position_errors_m(live, truth, after_s=ALIGNED_S)) < 1.0
 

@@ -19,8 +19,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-import dbc
-from drivers.logs.candump import read_candump
 from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection, load_config
 from gateway.estimation.solution import LearnedState, Mode
 from gateway.fusion.engines import make_engine
@@ -28,27 +26,13 @@ from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, SimRun, generate
 from sim_bus.truth import Truth
 from tests.kinematics import Motion, Segment, fed, gnss_stream, imu_stream, state_at
-from tests.n2k_check import decode_log
+from tests.n2k_check import decode_log, stated_sigma_deg
 
 
 @pytest.fixture(scope="module", params=[5, 21, 34])
 def slope_start(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> SimRun:
     """The run of one seed."""
     return generate(SCENARIOS["slope-start"], tmp_path_factory.mktemp("sigma"), seed=request.param)
-
-
-def stated_sigma_deg(log: Path) -> list[tuple[float, float | None]]:
-    """(time, SIGMA_TILT deg or None when not available) of every NAVGW_STATUS frame."""
-    status = dbc.load(dbc.OUTPUT_DBC).get_message_by_name("NAVGW_STATUS")
-    pgn = (status.frame_id >> 8) & 0x3FFFF
-    out = []
-    for frame in read_candump(log):
-        if (frame.arbitration_id >> 8) & 0x3FFFF == pgn:
-            values = status.decode(bytes(frame.data), decode_choices=False)
-            assert isinstance(values, dict)
-            sigma = values["SIGMA_TILT"]
-            out.append((float(frame.timestamp), sigma if isinstance(sigma, float) else None))
-    return out
 
 
 def error_over_sigma(log: Path, truth: Truth) -> np.ndarray:
