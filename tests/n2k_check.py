@@ -9,7 +9,7 @@ from __future__ import annotations
 import bisect
 import itertools
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -154,35 +154,49 @@ def stated_sigma_deg(log: str | Path) -> list[tuple[float, float | None]]:
     return out
 
 
+@dataclass(frozen=True)
+class StatedTilt:
+    """One 127257 frame's roll and pitch (rad), with the SIGMA_TILT (deg, None: not
+    available) of the last NAVGW_STATUS before it."""
+
+    t: float
+    roll_rad: float
+    pitch_rad: float
+    sigma_deg: float | None
+
+
+def stated_tilts(log: str | Path) -> Iterator[StatedTilt]:
+    """Every 127257 frame of a candump log that has roll and pitch, with its stated accuracy."""
+    status = stated_sigma_deg(log)
+    times = [t for t, _ in status]
+    for m in decode_log(log):
+        roll, pitch = _number(m.fields.get("roll")), _number(m.fields.get("pitch"))
+        if m.id == "attitude" and roll is not None and pitch is not None:
+            i = bisect.bisect_right(times, m.t) - 1
+            yield StatedTilt(m.t, roll, pitch, status[i][1] if i >= 0 else None)
+
+
 def tilt_beyond_stated(
     log: str | Path, truth: Truth, lag_s: float = 0.0, margin_deg: float = 0.1
 ) -> tuple[int, list[str]]:
     """The never-lie check of roll and pitch: the attitude frames (127257) that state an
     accuracy, and one line for each whose roll or pitch is farther than ``margin_deg`` + 3
     sigma from the truth everywhere in ``[t - lag_s, t]`` (a live frame is stamped when
-    received). Sigma is the SIGMA_TILT of the last NAVGW_STATUS before the frame; a frame
-    within 0.1 s of a STATUS saying DEGRADED or FAULT, or after one stating no accuracy,
-    claims none and is not counted."""
-    status = stated_sigma_deg(log)
-    times = [t for t, _ in status]
+    received). A frame within 0.1 s of a STATUS saying DEGRADED or FAULT, or after one
+    stating no accuracy, claims none and is not counted."""
     excused = _degraded_near(status_modes(log))
     checked, beyond = 0, []
-    for m in decode_log(log):
-        roll, pitch = _number(m.fields.get("roll")), _number(m.fields.get("pitch"))
-        if m.id != "attitude" or roll is None or pitch is None or excused(m.t):
-            continue
-        i = bisect.bisect_right(times, m.t) - 1
-        sigma = status[i][1] if i >= 0 else None
-        if sigma is None:
+    for f in stated_tilts(log):
+        if f.sigma_deg is None or excused(f.t):
             continue
         checked += 1
-        lo, hi = np.searchsorted(truth.t, [m.t - lag_s, m.t], side="right")
+        lo, hi = np.searchsorted(truth.t, [f.t - lag_s, f.t], side="right")
         w = slice(max(int(lo) - 1, 0), max(int(hi), 1))
         off = [float(np.degrees(np.min(np.abs(v - truth.rpy_rad[w, k]))))
-               for k, v in enumerate((roll, pitch))]  # fmt: skip
-        if max(off) > margin_deg + 3.0 * sigma:
-            beyond.append(f"t={m.t - truth.t[0]:.3f} s roll/pitch {off[0]:.2f}/{off[1]:.2f} "
-                          f"deg off, {sigma:.2f} deg stated")  # fmt: skip
+               for k, v in enumerate((f.roll_rad, f.pitch_rad))]  # fmt: skip
+        if max(off) > margin_deg + 3.0 * f.sigma_deg:
+            beyond.append(f"t={f.t - truth.t[0]:.3f} s roll/pitch {off[0]:.2f}/{off[1]:.2f} "
+                          f"deg off, {f.sigma_deg:.2f} deg stated")  # fmt: skip
     return checked, beyond
 
 

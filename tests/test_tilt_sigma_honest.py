@@ -12,7 +12,6 @@ off: on seed 21, 46 % of the frames beyond 2 sigma and 9 % beyond 3.
 
 from __future__ import annotations
 
-import bisect
 import math
 from pathlib import Path
 
@@ -26,7 +25,7 @@ from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, SimRun, generate
 from sim_bus.truth import Truth
 from tests.kinematics import Motion, Segment, fed, gnss_stream, imu_stream, state_at
-from tests.n2k_check import decode_log, stated_sigma_deg
+from tests.n2k_check import stated_tilts
 
 
 @pytest.fixture(scope="module", params=[5, 21, 34])
@@ -38,19 +37,12 @@ def slope_start(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPat
 def error_over_sigma(log: Path, truth: Truth) -> np.ndarray:
     """Per 127257 frame with roll and pitch: max(|roll error|, |pitch error|) over the 1-sigma
     stated by the NAVGW_STATUS frame last sent before it."""
-    status = stated_sigma_deg(log)
-    times = [t for t, _ in status]
     ratios = []
-    for m in decode_log(log):
-        if m.id != "attitude" or m.fields.get("roll") is None or m.fields.get("pitch") is None:
-            continue
-        i = bisect.bisect_right(times, m.t) - 1
-        sigma = status[i][1] if i >= 0 else None
-        assert sigma is not None, f"roll/pitch sent at t={m.t:.3f} without a stated accuracy"
-        true = [np.interp(m.t, truth.t, truth.rpy_rad[:, k]) for k in range(2)]
-        est = [float(m.fields["roll"]), float(m.fields["pitch"])]  # type: ignore[arg-type]
-        error_deg = np.degrees(np.max(np.abs(np.subtract(est, true))))
-        ratios.append(error_deg / sigma)
+    for f in stated_tilts(log):
+        assert f.sigma_deg is not None, f"roll/pitch sent at t={f.t:.3f} without an accuracy"
+        true = [np.interp(f.t, truth.t, truth.rpy_rad[:, k]) for k in range(2)]
+        error_deg = np.degrees(np.max(np.abs(np.subtract((f.roll_rad, f.pitch_rad), true))))
+        ratios.append(error_deg / f.sigma_deg)
     return np.array(ratios)
 
 
