@@ -11,6 +11,7 @@ import os
 import shutil
 import subprocess
 import sys
+import time
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -29,9 +30,41 @@ PREPARED = "NAVGW_VCAN_PREPARED"
 RCVBUF_BYTES = 4 * 1024 * 1024
 
 
+#: Where the kernel lists its CAN receivers (one ``rcvlist_*`` file per kind of filter).
+RCVLISTS = Path("/proc/net/can")
+#: How long a candump may take to listen (the emulated guest starts one in well under 1 s).
+LISTEN_TIMEOUT_S = 30.0
+
+
 def candump_argv(channel: str, *options: str) -> list[str]:
     """``candump`` with ``options`` on ``channel``, with a socket buffer that loses nothing."""
     return ["candump", *options, "-r", str(RCVBUF_BYTES), channel]
+
+
+def _raw_receivers(device: str) -> int:
+    """CAN_RAW receivers the kernel lists for ``device`` ("any": bound to every interface)."""
+    return sum(
+        1
+        for rcvlist in RCVLISTS.glob("rcvlist_*")
+        for line in rcvlist.read_text().splitlines()
+        if line.split()[:1] == [device] and line.endswith(" raw")
+    )
+
+
+def record_candump(channel: str, path: Path) -> subprocess.Popen[bytes]:
+    """``candump -L`` of ``channel`` (candump's ``<device>[,<filters>]``) into ``path``,
+    listening once this returns: the kernel lists one more receiver on the device. A fixed
+    sleep is a guess on a slow guest, and the gateway answers within milliseconds (a CI run
+    missed its re-claim)."""
+    device = channel.split(",")[0]
+    before = _raw_receivers(device)
+    dump = subprocess.Popen(candump_argv(channel, "-L"), stdout=path.open("w"))
+    deadline = time.monotonic() + LISTEN_TIMEOUT_S
+    while _raw_receivers(device) <= before:
+        assert dump.poll() is None, f"candump on {channel} exited: {dump.returncode}"
+        assert time.monotonic() < deadline, f"candump on {channel} not listening"
+        time.sleep(0.02)
+    return dump
 
 
 def _vcan_problem(channel: str) -> str | None:
@@ -77,15 +110,15 @@ def sim_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 @pytest.fixture
 def candump(vcan0: str, tmp_path: Path) -> Iterator[Path]:
-    """``candump -L`` recording the bus into a file for the duration of the test."""
+    """``candump -L`` recording the bus into a file for the duration of the test, listening
+    from the start of it."""
     path = tmp_path / "candump.log"
-    with path.open("w") as f:
-        proc = subprocess.Popen(candump_argv(vcan0, "-L"), stdout=f)
-        try:
-            yield path
-        finally:
-            proc.terminate()
-            proc.wait(timeout=5)
+    proc = record_candump(vcan0, path)
+    try:
+        yield path
+    finally:
+        proc.terminate()
+        proc.wait(timeout=5)
 
 
 if __name__ == "__main__":

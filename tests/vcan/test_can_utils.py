@@ -53,7 +53,6 @@ def test_canplayer_output_recorded_by_candump_decodes_the_same(
     vcan0: str, sim_run: Path, tmp_path: Path, candump: Path
 ) -> None:
     out = _first_seconds(sim_run, tmp_path, seconds=20.0)
-    time.sleep(0.3)  # candump is listening
     subprocess.run(["canplayer", "-I", str(out), f"{vcan0}=can0"], check=True, timeout=120)
     time.sleep(0.5)
     sent = [(f.arbitration_id, bytes(f.data)) for f in read_candump(out)]
