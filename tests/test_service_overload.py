@@ -28,9 +28,26 @@ from gateway.service.live_loop import GatewayService
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
 from tests.multicast import GROUP
-from tests.n2k_check import decode_log, implausible_frames
+from tests.n2k_check import (
+    Decoded,
+    decode_log,
+    implausible_frames,
+    status_modes,
+    tilt_beyond_stated,
+)
 
 pytestmark = pytest.mark.live
+
+
+def assert_nothing_false(decoded: list[Decoded], truth: Truth, log: Path) -> None:
+    """Nothing wrong unless NAVGW_STATUS says so (SPEC 4: DEGRADED or FAULT from the same
+    instant), and roll/pitch within the accuracy stated (at most 0.5 % beyond, by chance).
+    Held to the gross bounds without the status, a CI run under stress-ng failed on pitch
+    3.5 deg off for 0.5 s that went out under DEGRADED."""
+    assert implausible_frames(decoded, truth, status=status_modes(log)) == []
+    checked, beyond = tilt_beyond_stated(log, truth, lag_s=0.5)
+    assert len(beyond) <= 0.005 * checked, beyond[:10]
+
 
 SPEED = 4.0
 SECONDS = 60.0  # of the short run: rest, alignment, then driving
@@ -130,7 +147,7 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
     # nothing implausible went out while the core ran behind
     decoded = decode_log(out_log)
     assert [m for m in decoded if m.id == "attitude"], "no attitude frame at all"
-    assert implausible_frames(decoded, truth) == []
+    assert_nothing_false(decoded, truth, out_log)
 
 
 #: Time each IMU frame holds up the slowed reader, s: at SPEED 1638 frames arrive a second,
@@ -184,6 +201,6 @@ def test_a_reader_slower_than_its_input_sheds_what_is_stale_and_keeps_sending(
     assert service.stats.frames_shed > 0.1 * 2 * played, service.status_line()
     assert service.core.stats.imu_samples > 0.1 * played, service.status_line()
     decoded = decode_log(out_log)
-    assert implausible_frames(decoded, truth) == []
+    assert_nothing_false(decoded, truth, out_log)
     sent = [m for m in decoded if m.id == "attitude" and m.fields["roll"] is not None]
     assert len(sent) > 3 * SECONDS, service.status_line()
