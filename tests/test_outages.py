@@ -21,6 +21,7 @@ from drivers.units import wrap_pi
 from gateway.config.gateway_config import Engine, GatewayConfig, GnssSection, VehicleSection
 from gateway.estimation.epoch_clock import EpochTime
 from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.solution import LearnedState, Mode
 from gateway.fusion.engines import make_engine
 from gateway.fusion.fusion_core import RESTART_GAP_S, FusionCore
@@ -56,11 +57,14 @@ def run(
     imu: list[ImuSample],
     fixes: list[GnssFix],
     epoch_time: EpochTime = EpochTime.UTC,
+    observer: ObserverConfig | None = None,
 ) -> FusionCore:
-    """Both streams through the core in time order; frames to ``path``."""
+    """Both streams through the core in time order; frames to ``path`` (``observer``: the
+    [observer] table, else the default)."""
     config = GatewayConfig(
         vehicle=VehicleSection(antenna_lever_arm_m=LEVER),
         gnss=GnssSection(epoch_time=epoch_time),
+        observer=observer or ObserverConfig(),
     ).with_engine(engine)
     core = FusionCore.from_config(config)
     with CandumpWriter(path, "can0") as writer:
@@ -771,8 +775,9 @@ def test_restarted_while_reversing_the_heading_stays_the_right_way_round(
     assert max(errors) < 1.0
 
 
+@pytest.mark.parametrize("accel_bias_filter", [False, True])
 def test_a_large_bias_partly_learnt_before_a_restart_is_stated_as_it_shows(
-    tmp_path: Path,
+    tmp_path: Path, accel_bias_filter: bool
 ) -> None:
     """An accelerometer bias of (0.3, -0.2) m/s^2, three times the observer's 0.1 turn-on
     sigma (seed 000's example is 0.2), partly learnt in a U-turn, then an IMU stall: the
@@ -782,7 +787,8 @@ def test_a_large_bias_partly_learnt_before_a_restart_is_stated_as_it_shows(
     with 0.32). The sigma now follows the bias the estimate has shown
     (``ObserverEngine._sigma_ba_mps2``): every roll and pitch sent after the restart within
     0.1 deg + 3 stated sigmas. (Before the first turn such a bias is beyond the turn-on
-    model: docs/ROBUSTNESS.md, "Open".)"""
+    model: docs/ROBUSTNESS.md, "Open".) The same with the accel-bias filter, which starts
+    again from the learnt estimate and sigma."""
     drive = Motion(
         [Segment(15.0), Segment(5.0, accel_mps2=0.6), Segment(20.0),
          Segment(math.pi / 0.3, yaw_rate_rps=0.3), Segment(25.0), Segment(30.0),
@@ -793,6 +799,7 @@ def test_a_large_bias_partly_learnt_before_a_restart_is_stated_as_it_shows(
     imu = imu_stream(drive, bias_a_mps2=(0.3, -0.2, 0.1), noise_a_mps2=0.01, seed=6)
     log = tmp_path / "out.log"
     fixes = gnss_stream(drive, antenna_lever_arm_m=LEVER)
-    core = run(log, Engine.OBSERVER, without(imu, stall), fixes)
+    observer = ObserverConfig(accel_bias_filter=accel_bias_filter)
+    core = run(log, Engine.OBSERVER, without(imu, stall), fixes, observer=observer)
     assert core.stats.engine_restarts == 1
     assert attitude_within_stated(log, drive, (stall[1], math.inf)) > 1000

@@ -19,6 +19,7 @@ import numpy as np
 import pytest
 
 from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection, load_config
+from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.solution import LearnedState, Mode
 from gateway.fusion.engines import make_engine
 from gateway.offline.log_replay import replay
@@ -46,17 +47,21 @@ def error_over_sigma(log: Path, truth: Truth) -> np.ndarray:
     return np.array(ratios)
 
 
-@pytest.mark.parametrize("engine", list(Engine))
+@pytest.mark.parametrize(
+    ("engine", "observer_table"),
+    [(Engine.OBSERVER, ""), (Engine.OBSERVER, "accel_bias_filter = true"), (Engine.EKF, "")],
+    ids=["observer", "observer-accel-bias-filter", "ekf"],
+)
 def test_roll_and_pitch_stay_within_their_stated_accuracy_from_a_cold_start_on_a_slope(
-    engine: Engine, slope_start: SimRun, tmp_path: Path
+    engine: Engine, observer_table: str, slope_start: SimRun, tmp_path: Path
 ) -> None:
-    out = tmp_path / "out.log"
-    replay(
-        slope_start.imu_log,
-        slope_start.gnss_log,
-        out,
-        load_config(slope_start.config_file).with_engine(engine),
+    """Through ``navgw replay`` with the scenario's config file (and an [observer] table)."""
+    config = tmp_path / "navgw.toml"
+    config.write_text(
+        Path(slope_start.config_file).read_text() + f"\n[observer]\n{observer_table}\n"
     )
+    out = tmp_path / "out.log"
+    replay(slope_start.imu_log, slope_start.gnss_log, out, load_config(config).with_engine(engine))
     ratios = error_over_sigma(out, Truth.load(slope_start.truth_file))
     assert len(ratios) > 5000  # most of the run's 50 Hz attitude frames
     beyond_2, beyond_3 = np.mean(ratios > 2.0), np.mean(ratios > 3.0)
@@ -93,9 +98,13 @@ def test_on_a_first_straight_the_ekf_states_the_roll_it_cannot_tell_from_the_y_b
     assert max(ratios) < 2.5, max(ratios)
 
 
-@pytest.mark.parametrize("engine", list(Engine))
+@pytest.mark.parametrize(
+    ("engine", "accel_bias_filter"),
+    [(Engine.OBSERVER, False), (Engine.OBSERVER, True), (Engine.EKF, False)],
+    ids=["observer", "observer-accel-bias-filter", "ekf"],
+)
 def test_a_paper_sized_accelerometer_bias_is_within_the_stated_accuracy_from_the_start(
-    engine: Engine,
+    engine: Engine, accel_bias_filter: bool
 ) -> None:
     """Seed 000's example, an accelerometer y bias of 0.2 m/s^2 (a unit not nulled at
     installation; the paper's own had 0.11 on x): until the heading changes it is roll,
@@ -105,7 +114,10 @@ def test_a_paper_sized_accelerometer_bias_is_within_the_stated_accuracy_from_the
     until the filter has observed the bias. Every roll sent, from the levelling at rest on,
     within 3 stated sigmas."""
     drive = Motion([Segment(15.0), Segment(5.0, accel_mps2=0.6), Segment(40.0)], yaw0_rad=0.0)
-    cfg = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=(0.3, 0.0, -3.0)))
+    cfg = GatewayConfig(
+        vehicle=VehicleSection(antenna_lever_arm_m=(0.3, 0.0, -3.0)),
+        observer=ObserverConfig(accel_bias_filter=accel_bias_filter),
+    )
     cfg = cfg.with_engine(engine)
     c_bn = state_at(drive, 0.0).c_bn[0]
     roll_true = math.atan2(c_bn[2, 1], c_bn[2, 2])

@@ -24,6 +24,9 @@ class ObserverConfig:
     tau_g_s: float = 40.0  # gyro bias observer time constant, eq. (11)
     omega_a_dps: float = 45.0  # accelerometer bias observer rate constant, eq. (12)
     estimate_biases: bool = True  # False: the "observer without bias estimation" baseline
+    # x/y accelerometer biases from a Kalman filter on the tilt loop's residual, not eq. (12):
+    # the product's extension (docs/ACCURACY.md); false: the paper's observer
+    accel_bias_filter: bool = False
 
     # --- vehicle geometry (SPEC 5) ---
     antenna_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # antenna rel. reference point, body
@@ -50,6 +53,10 @@ class ObserverConfig:
     # --- IMU noise (ADIS16334 datasheet): roll/pitch sigma, heading gain, bias at rest ---
     gyro_arw_deg_per_sqrt_h: float = 2.0  # gyro angular random walk
     accel_vrw_mps_per_sqrt_h: float = 0.12  # accelerometer velocity random walk
+    # in-run bias wander (the accel-bias filter's process noise; [imu], as the EKF's)
+    gyro_bias_stability_dps: float = 0.007  # in-run bias stability (Allan floor)
+    accel_bias_stability_mg: float = 0.1  # in-run bias stability (Allan floor)
+    bias_correlation_time_s: float = 100.0  # Gauss-Markov time of the in-run bias
     # Engine vibration seen by the IMU (installation): broadband 1-sigma per sample, as
     # [ekf]'s; the stated accuracy holds for it, and grows with the noise measured at rest
     # where that is beyond it (gateway/estimation/imu_noise.py)

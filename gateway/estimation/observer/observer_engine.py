@@ -24,7 +24,7 @@ from typing import Literal
 
 from drivers.log_limit import LogLimiter
 from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, Float3, GnssFix, ImuSample
-from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, SQRT_SECONDS_PER_HOUR, wrap_pi
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, MG_MPS2, SQRT_SECONDS_PER_HOUR, wrap_pi
 from gateway.estimation.attitude import (
     Mat9,
     dcm_from_rpy,
@@ -34,6 +34,7 @@ from gateway.estimation.attitude import (
     roll_pitch_from_specific_force,
     rpy_from_mat9,
 )
+from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.engine_base import (
     HeldEpochs,
     ImuHealth,
@@ -63,6 +64,7 @@ from gateway.estimation.lever_arm import (
     reference_from_antenna,
     velocity_at,
 )
+from gateway.estimation.observer.accel_bias_filter import AccelBiasFilter, BiasFilterNoise
 from gateway.estimation.observer.coast_budget import CoastBudget
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
@@ -195,6 +197,7 @@ class ObserverEngine:
         self._noise = noise or ImuNoiseMeter()  # the IMU's white noise at rest, vibration too
         self._imu_dt_s = 0.0  # the IMU's sample period, s
         self._floor_scale = 1.0  # the residual bias floors, for the noise measured
+        self._accel_psd = 0.0  # the accelerometer's white noise, (m/s^2)^2/Hz, as measured
         self._mounting_var = (cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         self._v_imu_ned_mps = [0.0, 0.0, 0.0]  # IMU-point velocity while coasting
         # IMU-point minus reference-point velocity, C (w_b x l_imu), at the last velocity
@@ -241,6 +244,10 @@ class ObserverEngine:
         self._log = LogLimiter(log)
         self._track = GnssTrack()  # the receiver's own track: glitch or engine off?
         self._seed: LearnedState | None = None  # what a warm start gave (:meth:`seed`)
+        # the x/y accelerometer biases from a filter instead of eq. (12), if configured
+        self._ba_filter = (
+            AccelBiasFilter(cfg.tau_s) if cfg.accel_bias_filter and cfg.estimate_biases else None
+        )
         self._hint: HeadingHint | None = None  # the heading the last engine had, till aligned
 
     # ======================================================================== prediction
@@ -387,6 +394,7 @@ class ObserverEngine:
             self.cfg.omega_a_dps * DEG_TO_RAD,
             dcm_from_rpy(roll, pitch, 0.0),
         )
+        self._observer.learn_accel = self._ba_filter is None
         if self._seed is not None:
             self._apply_seed(self._observer, self._seed)
         self._noise_as_measured()  # at a restart on the move: what the last engine measured
@@ -430,13 +438,15 @@ class ObserverEngine:
             if f_rest_b_mps2 is not None:
                 ba, f = learned.bias_a_mps2, f_rest_b_mps2
                 minus_f_true = (ba[0] - f[0], ba[1] - f[1], ba[2] - f[2])  # -(f - b_a)
-                obs.rotate(levelling_correction(obs.c_bp9, minus_f_true))
+                self._rotate_platform(levelling_correction(obs.c_bp9, minus_f_true))
         return True
 
     def _apply_seed(self, obs: TereshkovObserver, s: LearnedState) -> None:
         ba = obs.ba_hat_mps2
         dba = (s.bias_a_mps2[0] - ba[0], s.bias_a_mps2[1] - ba[1], s.bias_a_mps2[2] - ba[2])
-        obs.rotate(levelling_correction(obs.c_bp9, (float(dba[0]), float(dba[1]), float(dba[2]))))
+        self._rotate_platform(
+            levelling_correction(obs.c_bp9, (float(dba[0]), float(dba[1]), float(dba[2])))
+        )
         obs.set_biases(s.bias_g_rps, s.bias_a_mps2)
         kf = self._heading.kf
         kf.update(s.bias_g_rps[2] - kf.x_rps, s.sigma_g_rps[2] ** 2)
@@ -613,7 +623,8 @@ class ObserverEngine:
         """The epoch's period is over and no new epoch has come: both loops open."""
         obs = self._observer
         assert obs is not None
-        obs.open_tilt_loop()
+        last = self._t_last_epoch_s
+        self._set_tilt_open(self._t_s if last is None else last + 1.5 * self._control_period_s)
         obs.set_heading_rate(0.0)
         self._w_pz_rps = 0.0
         self._control_until_s = None
@@ -674,8 +685,8 @@ class ObserverEngine:
             self._prev_rest_row = None
             return
         f = level.f_b_mps2  # bias-corrected: level on -f
-        obs.rotate(levelling_correction(obs.c_bp9, (-f[0], -f[1], -f[2])))
-        obs.open_tilt_loop()
+        self._rotate_platform(levelling_correction(obs.c_bp9, (-f[0], -f[1], -f[2])))
+        self._set_tilt_open(t_e)
         # what a levelling on a moving window or a coast left in the tilt is gone with it
         self._sigma_level_rad = min(self._sigma_level_rad, level.sigma_tilt_rad)
         # eq. (3)'s differences start again after the stop: the corrections they would have
@@ -716,7 +727,10 @@ class ObserverEngine:
         self._gyro_arw = arw * r_g
         self._arw_tilt_var = self._gyro_arw**2 * cfg.tau_s / 2.0
         self._floor_scale = max(r_g, r_a)
-        self._rest.set_noise(self._gyro_arw, (sigma_a * r_a) ** 2 * dt)
+        self._accel_psd = (sigma_a * r_a) ** 2 * dt
+        self._rest.set_noise(self._gyro_arw, self._accel_psd)
+        if self._ba_filter is not None:
+            self._ba_filter.noise = self._bias_filter_noise()
 
     def _observe_gyro_bias_at_rest(self, w_res_rps: tuple[float, float], d_s: float) -> None:
         """At rest the mean bias-corrected body rate x/y over ``d_s`` is the gyro bias error
@@ -996,7 +1010,7 @@ class ObserverEngine:
         interval_s = 0.0 if prev is None else t_e - prev[0]
         if prev is None or not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
             self._prev_epoch = current
-            self._set_tilt_open()
+            self._set_tilt_open(t_e)
             return False
         _, vn_prev, ve_prev, prow = prev
         e_n = (v_imu_n - vn_prev) / interval_s - (row[_SF_N] - prow[_SF_N]) / interval_s
@@ -1012,20 +1026,58 @@ class ObserverEngine:
             if self._rejecting_since_s is None:
                 self._rejecting_since_s = t_e
             if t_e - self._rejecting_since_s < self.cfg.glitch_persist_s:
-                self._set_tilt_open()
+                self._set_tilt_open(t_e)
                 return True
             # rejected this long: the platform is off, not the GNSS; correct, clipped
             e_n, e_e = e_n * gate_mps / mismatch_mps, e_e * gate_mps / mismatch_mps
+            if self._ba_filter is not None:
+                self._ba_filter.lose_tilt(t_e, obs.c_bp9)
         self._prev_epoch = current
         if not closed:
-            self._set_tilt_open()
+            self._set_tilt_open(t_e)
             return False
         obs.correct_tilt(e_n * scale, e_e * scale)
+        if self._ba_filter is not None and not glitch:
+            self._filter_epoch(t_e, (e_n, e_e), (row, prow), interval_s)
         self._sigma_level_rad *= math.exp(-interval_s / self.cfg.tau_s)
         self._epoch_interval_s = interval_s
         a = min(1.0, interval_s / E_NOISE_TAU_S)
         self._e_var_mps4 += a * (0.5 * (e_n * e_n + e_e * e_e) - self._e_var_mps4)
         return glitch
+
+    def _filter_epoch(
+        self, t_e: float, e_ne: tuple[float, float], rows: tuple[_Row, _Row], interval_s: float
+    ) -> None:
+        """Feed the accel-bias filter the epoch's e (it starts with learning) and apply the
+        x/y bias correction it returns."""
+        obs, flt = self._observer, self._ba_filter
+        assert obs is not None and flt is not None
+        ba, bg = obs.ba_hat_mps2, obs.bg_hat_rps
+        biases = (ba[0], ba[1], ba[2], bg[0], bg[1])
+        if not flt.started:
+            if not obs.learn:
+                return
+            flt.start(obs.c_bp9, self._ba_origin[2], biases, self._bias_filter_noise())
+        row, prow = rows
+        f_p = ((row[_SF_N] - prow[_SF_N]) / interval_s, (row[_SF_E] - prow[_SF_E]) / interval_s)
+        fix = self._last_fix
+        sigma_v = self.cfg.gnss_vel_sigma_mps
+        if fix is not None:
+            sigma_v = fix_velocity_sigma_mps(fix, sigma_v)
+        db = flt.epoch(t_e, e_ne, f_p, obs.c_bp9, biases, sigma_v, obs.learn)
+        obs.add_accel_bias_xy(*db)
+
+    def _bias_filter_noise(self) -> BiasFilterNoise:
+        """The accel-bias filter's noise: the IMU's white noise as measured where it is more
+        than the config's (:meth:`_noise_as_measured`), the in-run wander of [imu]."""
+        cfg = self.cfg
+        return BiasFilterNoise(
+            accel_psd=self._accel_psd,
+            arw_rad_per_sqrt_s=self._gyro_arw,
+            accel_bias_sigma_mps2=cfg.accel_bias_stability_mg * MG_MPS2 / GM_ALLAN_FLOOR,
+            gyro_bias_sigma_rps=cfg.gyro_bias_stability_dps * DEG_TO_RAD / GM_ALLAN_FLOOR,
+            bias_correlation_s=cfg.bias_correlation_time_s,
+        )
 
     def _glitch_dv_mps(self, period_s: float) -> float:
         """Largest velocity-change mismatch over one epoch period that is not a glitch: white
@@ -1037,15 +1089,33 @@ class ObserverEngine:
         noise_mps = cfg.glitch_sigma * math.sqrt(2.0) * cfg.gnss_vel_sigma_mps
         return noise_mps + cfg.e_gate_mps2 * period_s
 
-    def _set_tilt_open(self) -> None:
+    def _set_tilt_open(self, t_s: float | None) -> None:
+        """The tilt loop opens (at epoch time ``t_s``: until then its control was on)."""
+        obs = self._observer
+        assert obs is not None
+        obs.open_tilt_loop()
+        if self._ba_filter is not None and t_s is not None:
+            self._ba_filter.open(t_s, obs.c_bp9)
+
+    def _rotate_platform(self, phi_rad: Float3) -> None:
+        """C <- exp([phi]x) C (a levelling): the accel-bias filter's tilt error moves with it."""
         assert self._observer is not None
-        self._observer.open_tilt_loop()
+        self._observer.rotate(phi_rad)
+        if self._ba_filter is not None:
+            self._ba_filter.rotate(phi_rad)
+
+    def _turn_platform(self, dpsi_rad: float) -> None:
+        """C <- Rz(dpsi) C (a heading step): the accel-bias filter's tilt error turns with it."""
+        assert self._observer is not None
+        self._observer.rotate_about_vertical(dpsi_rad)
+        if self._ba_filter is not None:
+            self._ba_filter.rotate_about_vertical(dpsi_rad)
 
     def _enter_coasting(self) -> None:
         """GNSS velocity timed out: platform runs open loop (w_p = 0), learning frozen."""
         obs = self._observer
         assert obs is not None
-        obs.open_tilt_loop()
+        self._set_tilt_open(self._t_last_epoch_s)
         obs.set_heading_rate(0.0)
         obs.learn = False
         self._w_pz_rps = 0.0
@@ -1132,7 +1202,7 @@ class ObserverEngine:
             else:
                 return
             # yaw at t_e is psi_e; move it onto the reference, keep the gyro motion since t_e
-            obs.rotate_about_vertical(wrap_pi(target - row[_PSI]))
+            self._turn_platform(wrap_pi(target - row[_PSI]))
             self._heading_aligned = True
             self._hint = None
             self._heading.aligned(sigma)
@@ -1143,7 +1213,7 @@ class ObserverEngine:
         )
         corr = self._heading.correct(t_e, row[_PSI], ref, row[_HC], c_bn_dd, obs.learn)
         if corr.step_rad:
-            obs.rotate_about_vertical(corr.step_rad)
+            self._turn_platform(corr.step_rad)
         self._w_pz_rps = corr.w_pz_rps
         obs.set_heading_rate(corr.w_pz_rps)
         obs.set_gyro_bias_z(self._heading.bg_z_rps)
@@ -1361,7 +1431,7 @@ class ObserverEngine:
         convergence = convergence_of(
             self._g_learn >= k,
             self._heading.kf.sigma_rps < self.cfg.gyro_z_converged_dps * DEG_TO_RAD,
-            self._a_learn >= k,
+            self._accel_xy_converged(k),
             not obs.learn,
         )
         quality, sats, hdop, age, geoid, station, talker = fix_fields(fix)
@@ -1378,6 +1448,14 @@ class ObserverEngine:
             self._heading.reversing, self._stationary, coasting_s > 0.0,  # ... coasting
             False, convergence,  # is_ekf, convergence
         )  # fmt: skip
+
+    def _accel_xy_converged(self, k: float) -> bool:
+        """Learnt k time constants of eq. (12); with the filter, its sigma at the residual
+        level seed 000 reports after convergence (the stated sigma's floor)."""
+        flt = self._ba_filter
+        if flt is None:
+            return self._a_learn >= k
+        return flt.started and flt.sigma_mps2 <= ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale
 
     def _yaw_rate_rps(self, c9: Mat9) -> float | None:
         """Rate of turn (:func:`heading_rate_from_mat9`), w_b averaged over the last
@@ -1436,6 +1514,9 @@ class ObserverEngine:
         the error left (headland-reversing seed 117 restarted: 1.06 deg off with 0.32
         stated). Looked at once the estimate has moved a fifth of the way
         (``SHOWN_BIAS_MIN_LEARNT``): before, its noise would be the bias shown."""
+        flt = self._ba_filter
+        if flt is not None and flt.started:
+            return max(flt.sigma_mps2, ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale)
         bx0, by0, sigma0, a0 = self._ba_origin
         left = math.exp(a0 - self._a_learn)
         sigma = sigma0 * left

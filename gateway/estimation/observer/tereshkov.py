@@ -66,6 +66,7 @@ class TereshkovObserver:
         self.omega_a_rps = omega_a_rps
         self.g_mps2 = g_mps2
         self.learn = False
+        self.learn_accel = True  # eq. (12); off where a filter learns the x/y accel biases
         self._c: Mat9 = to_mat9(c_bp)
         self._bg_rps = [0.0, 0.0, 0.0]
         self._ba_mps2 = [0.0, 0.0, 0.0]
@@ -119,8 +120,9 @@ class TereshkovObserver:
         bg, ba = self._bg_rps, self._ba_mps2
         bg[0] += k_g * wpb_x
         bg[1] += k_g * wpb_y
-        ba[0] += k_a * wpb_x
-        ba[1] += k_a * wpb_y
+        if self.learn_accel:
+            ba[0] += k_a * wpb_x
+            ba[1] += k_a * wpb_y
 
     # ---------------------------------------------------------------------- corrections
 
@@ -165,6 +167,11 @@ class TereshkovObserver:
         """Both bias estimates at once (a warm start), used from the next sample on."""
         self._bg_rps = [float(bg_rps[0]), float(bg_rps[1]), float(bg_rps[2])]
         self._ba_mps2 = [float(ba_mps2[0]), float(ba_mps2[1]), float(ba_mps2[2])]
+
+    def add_accel_bias_xy(self, dbx_mps2: float, dby_mps2: float) -> None:
+        """A correction of the x/y accelerometer bias estimate (the accel-bias filter's)."""
+        self._ba_mps2[0] += dbx_mps2
+        self._ba_mps2[1] += dby_mps2
 
     def set_accel_bias_z(self, ba_z_mps2: float) -> None:
         """The z accelerometer bias estimate (the engine's height loop), used from the next

@@ -1,0 +1,252 @@
+"""A Kalman filter for the x/y accelerometer biases on the tilt loop's own residual (option).
+
+The product's own extension of seed 000, off by default (``[observer] accel_bias_filter``):
+it takes the place of eq. (12) and leaves the attitude loop (eqs. 1-3) and eq. (11) as they
+are. Eq. (12) moves the bias by the control rate times the yaw rate: it learns only in turns,
+from the quadrature part of a loop that lags the turning error, and reads as bias whatever else
+tilts the platform in a turn (the loop's own noise, a gyro bias not yet learnt, b_g tau): a
+quarter turn on `field` moves it by 5-11 mg while it removes a fifth of its error
+(docs/ACCURACY.md). This filter models what makes the residual instead and weighs each epoch by
+it.
+
+Per closed-loop GNSS epoch the engine hands over e = f_gnss - mean(f_p) (horizontal, NED) over
+the interval T, the same e its tilt loop corrects with. Their sum r = sum e T is a velocity
+residual whose noise is the last velocity's alone (the differences telescope), so r, not e,
+is the measurement. States:
+
+    dv  (2)  the velocity residual since the chain of epochs began, m/s
+    x   (2)  the platform's tilt error as a specific force, g (phi_E, -phi_N), m/s^2
+    db  (2)  x/y accelerometer bias error, body, m/s^2
+    dg  (2)  x/y gyro bias error, body, rad/s
+    dbz      z accelerometer bias error, m/s^2 (on the horizontal through a tilted body)
+    dpsi     heading error, rad (the heading channel's: it turns the horizontal acceleration)
+
+    dv' = -x - C_h db - c_z dbz + (-a_E, a_N) dpsi + n_a      (e = f_gnss - f_p)
+    x'  = e_applied / tau + g J C_h dg + n_g                  (the loop's control, eq. 3)
+
+with C_h the horizontal 2x2 of C_b^p, c_z its third column's horizontal part, a the epoch's mean
+horizontal specific force, J = [[0, -1], [1, 0]]. The tilt loop's control is a known input (the
+e it applied over the interval); what the engine itself does to the platform (a levelling at
+rest, a heading alignment) is told with :meth:`rotate` and :meth:`rotate_about_vertical`, and
+what else moves the bias estimates (eq. 11, a zero-rate update, the z height loop) is seen as
+their change between epochs. The estimated x/y bias error is handed back for the observer to
+apply (an error-state filter: the state then returns to zero). Until the first turn x and
+C_h db are one quantity: the filter starts with them correlated as a levelling leaves them
+(x = -C_h db), so nothing is learnt before the heading changes.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+import numpy.typing as npt
+
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
+from gateway.estimation.attitude import Mat9
+
+Array = npt.NDArray[np.float64]
+
+N_STATES = 10
+_DV, _X, _DB, _DG, _DBZ, _DPSI = slice(0, 2), slice(2, 4), slice(4, 6), slice(6, 8), 8, 9
+_J = np.array([[0.0, -1.0], [1.0, 0.0]])
+_H = np.zeros((2, N_STATES))
+_H[0, 0] = _H[1, 1] = 1.0
+#: An innovation beyond this (its squared Mahalanobis length, chi-square with 2 degrees of
+#: freedom: 1e-6 of a consistent filter's epochs) is not the model's: the tilt is taken as lost.
+NIS_GATE = 27.6
+#: The tilt error's 1-sigma once lost (a gyro fault, a platform beyond the glitch gate), rad.
+LOST_TILT_SIGMA_RAD = 2.0 * DEG_TO_RAD
+
+
+@dataclass(frozen=True)
+class BiasFilterNoise:
+    """What drives the filter's states, SI: white noise densities and Gauss-Markov sigmas."""
+
+    accel_psd: float  # accelerometer white noise (VRW and vibration), (m/s^2)^2 / Hz
+    arw_rad_per_sqrt_s: float  # gyro angular random walk
+    accel_bias_sigma_mps2: float  # in-run wander, Gauss-Markov 1-sigma ...
+    gyro_bias_sigma_rps: float
+    bias_correlation_s: float  # ... and correlation time
+    tilt_sigma0_rad: float = 0.06 * DEG_TO_RAD  # the loop's noise beside the bias (floor)
+    gyro_bias_sigma0_rps: float = 0.02 * DEG_TO_RAD  # eq. (11) at the start of learning
+    heading_sigma_rad: float = 0.3 * DEG_TO_RAD  # the heading channel's, Gauss-Markov ...
+    heading_correlation_s: float = 10.0  # ... held by the course over ground
+
+
+class AccelBiasFilter:
+    """x/y accelerometer bias learning from the tilt loop's residual (module docstring)."""
+
+    def __init__(self, tau_s: float, g_mps2: float = GRAVITY_MPS2) -> None:
+        self.noise = BiasFilterNoise(0.0, 0.0, 0.0, 0.0, 1.0)
+        self.tau_s = tau_s
+        self.g_mps2 = g_mps2
+        self.started = False
+        self._s = np.zeros(N_STATES)
+        self._p = np.zeros((N_STATES, N_STATES))
+        self._r = np.zeros(2)  # velocity residual of the chain, m/s
+        self._e_applied = np.zeros(2)  # e the loop corrects with over the coming interval
+        self._chained = False  # the last epoch closed the loop: the next one continues it
+        self._t_s: float | None = None  # the last epoch's time, s
+        self._seen = np.zeros(5)  # b_a x, y, z and b_g x, y as last handed over
+
+    def start(
+        self,
+        c9: Mat9,
+        sigma_ba_mps2: float,
+        biases: tuple[float, float, float, float, float],
+        noise: BiasFilterNoise,
+    ) -> None:
+        """Begin learning with the x/y bias error's 1-sigma ``sigma_ba_mps2`` (turn-on or a
+        seed's), the platform levelled on it (x = -C_h db), the estimates b_a x, y, z and b_g
+        x, y as they are."""
+        self.noise = n = noise
+        c_h = _c_h(c9)
+        sb2 = sigma_ba_mps2**2
+        p = np.zeros((N_STATES, N_STATES))
+        p[_X, _X] = sb2 * c_h @ c_h.T + (self.g_mps2 * n.tilt_sigma0_rad) ** 2 * np.eye(2)
+        p[_X, _DB] = -sb2 * c_h
+        p[_DB, _X] = -sb2 * c_h.T
+        p[_DB, _DB] = sb2 * np.eye(2)
+        p[_DG, _DG] = n.gyro_bias_sigma0_rps**2 * np.eye(2)
+        p[_DBZ, _DBZ] = sb2
+        p[_DPSI, _DPSI] = n.heading_sigma_rad**2
+        self._p = p
+        self._s[:] = 0.0
+        self._chained = False
+        self._t_s = None
+        self._seen = np.array(biases, dtype=float)
+        self.started = True
+
+    @property
+    def sigma_mps2(self) -> float:
+        """The larger x/y accelerometer bias 1-sigma, m/s^2."""
+        return math.sqrt(max(self._p[4, 4], self._p[5, 5]))
+
+    def open(self, t_s: float, c9: Mat9) -> None:
+        """The loop opened at ``t_s`` (a glitch, an outage, the period over): the control held
+        until then is predicted in, and the next epoch starts a new chain of differences."""
+        if self.started and self._chained:
+            self._advance(t_s, (0.0, 0.0), c9)
+            self._chained = False
+
+    def lose_tilt(self, t_s: float, c9: Mat9) -> None:
+        """The platform's tilt is off by more than the model follows (the engine corrects with
+        a clipped e, beyond its glitch gate): the tilt error is taken as unknown, apart from
+        the biases, and the next epoch starts a new chain."""
+        if not self.started:
+            return
+        self.open(t_s, c9)
+        self._s[_X] = 0.0
+        self._p[_X, :] = 0.0
+        self._p[:, _X] = 0.0
+        self._p[_X, _X] = (self.g_mps2 * LOST_TILT_SIGMA_RAD) ** 2 * np.eye(2)
+
+    def rotate(self, phi_rad: tuple[float, float, float]) -> None:
+        """The platform was turned by C <- exp([phi]x) C: its tilt error moves by -phi."""
+        self._s[2] -= self.g_mps2 * phi_rad[1]
+        self._s[3] += self.g_mps2 * phi_rad[0]
+
+    def rotate_about_vertical(self, dpsi_rad: float) -> None:
+        """The platform was turned about the vertical: its tilt error turns with it."""
+        c, s = math.cos(dpsi_rad), math.sin(dpsi_rad)
+        t = np.eye(N_STATES)
+        t[_X, _X] = ((c, -s), (s, c))
+        self._s = t @ self._s
+        self._p = t @ self._p @ t.T
+
+    def epoch(
+        self,
+        t_s: float,
+        e_ne_mps2: tuple[float, float],
+        f_p_ne_mps2: tuple[float, float],
+        c9: Mat9,
+        biases: tuple[float, float, float, float, float],
+        vel_sigma_mps: float,
+        learn: bool,
+    ) -> tuple[float, float]:
+        """One closed-loop epoch at ``t_s``: ``e`` over the interval since the last (the e the
+        loop now corrects with), ``f_p`` the interval's mean horizontal specific force, the
+        estimates b_a x, y, z and b_g x, y as they are, the fix's velocity 1-sigma. With
+        ``learn`` (the engine's gates open) the epoch is weighed and the x/y accelerometer bias
+        correction to add to the estimate is returned, m/s^2; else (0, 0)."""
+        seen = np.array(biases, dtype=float)
+        moved = seen - self._seen  # eq. (11), zero-rate and height-loop updates since
+        self._s[_DB] -= moved[0:2]
+        self._s[_DBZ] -= moved[2]
+        self._s[_DG] -= moved[3:5]
+        self._seen = seen
+        e = np.array(e_ne_mps2, dtype=float)
+        if self._chained:
+            dt = self._advance(t_s, f_p_ne_mps2, c9)
+            self._r += e * dt
+            if learn and not self._update(vel_sigma_mps):
+                self.lose_tilt(t_s, c9)  # and a new chain from here
+        if not self._chained:
+            self._advance(t_s, (0.0, 0.0), c9)  # the loop was open since the last
+            self._s[_DV] = 0.0
+            self._p[_DV, :] = 0.0
+            self._p[:, _DV] = 0.0
+            self._p[_DV, _DV] = vel_sigma_mps**2 * np.eye(2)
+            self._r[:] = 0.0
+        self._chained = True
+        self._e_applied = e
+        if not learn:
+            return (0.0, 0.0)
+        correction = (float(self._s[4]), float(self._s[5]))
+        self._s[_DB] = 0.0
+        self._seen[0:2] += correction
+        return correction
+
+    def _advance(self, t_s: float, f_p_ne: tuple[float, float], c9: Mat9) -> float:
+        """Predict from the last epoch to ``t_s`` (the control on if chained); returns dt."""
+        dt = 0.0 if self._t_s is None else max(t_s - self._t_s, 0.0)
+        if dt > 0.0:
+            self._predict(dt, f_p_ne, c9, self._e_applied if self._chained else np.zeros(2))
+        self._t_s = t_s
+        return dt
+
+    def _predict(self, dt: float, f_p_ne: tuple[float, float], c9: Mat9, e_applied: Array) -> None:
+        n, g = self.noise, self.g_mps2
+        c_h = _c_h(c9)
+        f = np.eye(N_STATES)
+        f[_DV, _X] = -dt * np.eye(2)
+        f[_DV, _DB] = -dt * c_h
+        f[_DV, _DG] = -0.5 * dt * dt * g * _J @ c_h
+        f[0:2, _DBZ] = (-dt * c9[2], -dt * c9[5])
+        f[0, _DPSI], f[1, _DPSI] = -dt * f_p_ne[1], dt * f_p_ne[0]
+        f[_X, _DG] = dt * g * _J @ c_h  # phi' = -C dg
+        decay_psi = math.exp(-dt / n.heading_correlation_s)
+        f[_DPSI, _DPSI] = decay_psi
+        q = np.zeros((N_STATES, N_STATES))
+        q[_DV, _DV] = n.accel_psd * dt * np.eye(2)
+        q[_X, _X] = (g * n.arw_rad_per_sqrt_s) ** 2 * dt * np.eye(2)
+        walk = 2.0 * dt / n.bias_correlation_s
+        q[_DB, _DB] = walk * n.accel_bias_sigma_mps2**2 * np.eye(2)
+        q[_DBZ, _DBZ] = walk * n.accel_bias_sigma_mps2**2
+        q[_DG, _DG] = walk * n.gyro_bias_sigma_rps**2 * np.eye(2)
+        q[_DPSI, _DPSI] = n.heading_sigma_rad**2 * (1.0 - decay_psi * decay_psi)
+        applied = e_applied * (dt / self.tau_s)
+        self._s = f @ self._s
+        self._s[_X] += applied
+        self._s[_DV] -= 0.5 * dt * applied
+        self._p = f @ self._p @ f.T + q
+
+    def _update(self, vel_sigma_mps: float) -> bool:
+        """Weigh the chain's velocity residual; False if it is beyond :data:`NIS_GATE`."""
+        p = self._p
+        s_inv = np.linalg.inv(p[0:2, 0:2] + vel_sigma_mps**2 * np.eye(2))
+        y = self._r - self._s[_DV]
+        if float(y @ s_inv @ y) > NIS_GATE:
+            return False
+        k = p[:, 0:2] @ s_inv
+        self._s = self._s + k @ y
+        p = p - k @ _H @ p
+        self._p = 0.5 * (p + p.T)
+        return True
+
+
+def _c_h(c9: Mat9) -> Array:
+    """The horizontal 2x2 of C_b^p: body x/y to North/East."""
+    return np.array(((c9[0], c9[1]), (c9[3], c9[4])))
