@@ -60,6 +60,23 @@ def with_passes(scenario: Scenario, passes: int | None) -> Scenario:
     return dataclasses.replace(scenario, name=f"{scenario.name}-{passes}", vehicle=vehicle)
 
 
+#: ``--engines`` names: the engine, and whether the observer learns its x/y accelerometer
+#: biases with the filter (``[observer] accel_bias_filter``) instead of eq. (12).
+VARIANTS = {
+    "observer": (Engine.OBSERVER, False),
+    "observer-filter": (Engine.OBSERVER, True),
+    "ekf": (Engine.EKF, False),
+}
+
+
+def configured(path: str | Path, name: str) -> GatewayConfig:
+    """The config file at ``path`` with the engine variant ``name`` of :data:`VARIANTS`."""
+    engine, accel_bias_filter = VARIANTS[name]
+    cfg = load_config(path).with_engine(engine)
+    observer = dataclasses.replace(cfg.observer, accel_bias_filter=accel_bias_filter)
+    return dataclasses.replace(cfg, observer=observer)
+
+
 def _s(x: float | None) -> str:
     return "never" if x is None else f"{x:.0f}"
 
@@ -71,7 +88,7 @@ def main() -> None:
     ap.add_argument("--second", default="short", choices=sorted(SCENARIOS))
     ap.add_argument("--pause-s", type=float, default=120.0)
     ap.add_argument("--seeds", type=int, nargs="+", default=[1, 2, 3])
-    ap.add_argument("--engines", nargs="+", default=["observer", "ekf"])
+    ap.add_argument("--engines", nargs="+", default=["observer", "ekf"], choices=list(VARIANTS))
     args = ap.parse_args()
     logging.basicConfig(level=logging.ERROR)
     first = with_passes(SCENARIOS[args.first], args.passes)
@@ -103,13 +120,12 @@ def main() -> None:
             power_on = dataclasses.replace(second, imu=imu_on)
             run3 = generate(power_on, out / "power-on", seed=seed + 1000)
             for name in args.engines:
-                engine = Engine(name)
                 state_dir = out / f"state-{name}"
                 replay(
                     run1.imu_log,
                     run1.gnss_log,
                     out / f"first-{name}.log",
-                    load_config(run1.config_file).with_engine(engine),
+                    configured(run1.config_file, name),
                     state_dir=state_dir,
                 )
                 stored = StateKeeper(load_config(run1.config_file), state_dir).load()
@@ -117,7 +133,7 @@ def main() -> None:
                 entry = stored.bands[-1]
                 true_end = truth_at(truth1, np.array([entry.t_s])).bias_a_mps2[0]
                 learned_err = np.array(entry.accel_mps2.bias[:2]) - true_end[:2]
-                config2 = load_config(run2.config_file).with_engine(engine)
+                config2 = configured(run2.config_file, name)
                 cold, _ = second_run(run2, config2, None)
                 warm, seeded = second_run(run2, config2, state_dir)
                 on, on_seeded = second_run(run3, config2, state_dir)
