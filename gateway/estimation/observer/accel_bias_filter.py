@@ -70,7 +70,11 @@ class BiasFilterNoise:
     gyro_bias_sigma_rps: float
     bias_correlation_s: float  # ... and correlation time
     tilt_sigma0_rad: float = 0.06 * DEG_TO_RAD  # the loop's noise beside the bias (floor)
-    gyro_bias_sigma0_rps: float = 0.02 * DEG_TO_RAD  # eq. (11) at the start of learning
+    # x/y gyro bias error as learning starts: eq. (11)'s residual (0.01 deg/s, the stated
+    # floor) doubled for the in-run wander it lags (0.011 deg/s over 100 s). The engine's
+    # stated gyro and z accelerometer sigmas as these priors left more of a turn's tilt to
+    # the x/y accelerometer bias: hillside y 0.0060/0.0117 m/s^2 RMS, 0.0047/0.0091 with these
+    gyro_bias_sigma0_rps: float = 0.02 * DEG_TO_RAD
     heading_sigma_rad: float = 0.3 * DEG_TO_RAD  # the heading channel's, Gauss-Markov ...
     heading_correlation_s: float = 10.0  # ... held by the course over ground
 
@@ -99,8 +103,9 @@ class AccelBiasFilter:
         noise: BiasFilterNoise,
     ) -> None:
         """Begin learning with the x/y bias error's 1-sigma ``sigma_ba_mps2`` (turn-on or a
-        seed's), the platform levelled on it (x = -C_h db), the estimates b_a x, y, z and b_g
-        x, y as they are."""
+        seed's; the z bias error's too, which the height loop learns in a minute), the
+        platform levelled on it (x = -C_h db), the estimates b_a x, y, z and b_g x, y as
+        they are."""
         self.noise = n = noise
         c_h = _c_h(c9)
         sb2 = sigma_ba_mps2**2
