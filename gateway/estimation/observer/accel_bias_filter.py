@@ -50,9 +50,6 @@ Array = npt.NDArray[np.float64]
 
 N_STATES = 10
 _DV, _X, _DB, _DG, _DBZ, _DPSI = slice(0, 2), slice(2, 4), slice(4, 6), slice(6, 8), 8, 9
-_J = np.array([[0.0, -1.0], [1.0, 0.0]])
-_H = np.zeros((2, N_STATES))
-_H[0, 0] = _H[1, 1] = 1.0
 #: An innovation beyond this (its squared Mahalanobis length, chi-square with 2 degrees of
 #: freedom: 1e-6 of a consistent filter's epochs) is not the model's: the tilt is taken as lost.
 NIS_GATE = 27.6
@@ -89,6 +86,7 @@ class AccelBiasFilter:
         self.started = False
         self._s = np.zeros(N_STATES)
         self._p = np.zeros((N_STATES, N_STATES))
+        self._sigma_mps2 = 0.0  # sigma_mps2, kept as P changes (read with every solution)
         self._r = np.zeros(2)  # velocity residual of the chain, m/s
         self._e_applied = np.zeros(2)  # e the loop corrects with over the coming interval
         self._chained = False  # the last epoch closed the loop: the next one continues it
@@ -117,7 +115,7 @@ class AccelBiasFilter:
         p[_DG, _DG] = n.gyro_bias_sigma0_rps**2 * np.eye(2)
         p[_DBZ, _DBZ] = sb2
         p[_DPSI, _DPSI] = n.heading_sigma_rad**2
-        self._p = p
+        self._set_p(p)
         self._s[:] = 0.0
         self._chained = False
         self._t_s = None
@@ -127,7 +125,12 @@ class AccelBiasFilter:
     @property
     def sigma_mps2(self) -> float:
         """The larger x/y accelerometer bias 1-sigma, m/s^2."""
-        return math.sqrt(max(self._p[4, 4], self._p[5, 5]))
+        return self._sigma_mps2
+
+    def _set_p(self, p: Array) -> None:
+        """P <- ``p`` (every change of the bias block goes through here)."""
+        self._p = p
+        self._sigma_mps2 = math.sqrt(max(p[4, 4], p[5, 5]))
 
     def open(self, t_s: float, c9: Mat9) -> None:
         """The loop opened at ``t_s`` (a glitch, an outage, the period over): the control held
@@ -213,42 +216,52 @@ class AccelBiasFilter:
         return dt
 
     def _predict(self, dt: float, f_p_ne: tuple[float, float], c9: Mat9, e_applied: Array) -> None:
+        """x <- F x + B u, P <- F P F^T + Q over ``dt``; F's entries and Q's diagonal set one
+        by one (per epoch, so numpy's per-call cost is what counts; docs/PERFORMANCE.md)."""
         n, g = self.noise, self.g_mps2
-        c_h = _c_h(c9)
+        a, b, c, d = c9[0], c9[1], c9[3], c9[4]  # C_h; J C_h = ((-c, -d), (a, b))
         f = np.eye(N_STATES)
-        f[_DV, _X] = -dt * np.eye(2)
-        f[_DV, _DB] = -dt * c_h
-        f[_DV, _DG] = -0.5 * dt * dt * g * _J @ c_h
-        f[0:2, _DBZ] = (-dt * c9[2], -dt * c9[5])
-        f[0, _DPSI], f[1, _DPSI] = -dt * f_p_ne[1], dt * f_p_ne[0]
-        f[_X, _DG] = dt * g * _J @ c_h  # phi' = -C dg
+        f[0, 2] = f[1, 3] = -dt  # dv' = -x ...
+        f[0, 4], f[0, 5], f[1, 4], f[1, 5] = -dt * a, -dt * b, -dt * c, -dt * d  # - C_h db
+        h = -0.5 * dt * dt * g  # ... - the tilt a gyro bias error builds over dt
+        f[0, 6], f[0, 7], f[1, 6], f[1, 7] = -h * c, -h * d, h * a, h * b
+        f[0, 8], f[1, 8] = -dt * c9[2], -dt * c9[5]  # - c_z dbz
+        f[0, 9], f[1, 9] = -dt * f_p_ne[1], dt * f_p_ne[0]  # + (-a_E, a_N) dpsi
+        k = dt * g  # x' = g J C_h dg (phi' = -C dg)
+        f[2, 6], f[2, 7], f[3, 6], f[3, 7] = -k * c, -k * d, k * a, k * b
         decay_psi = math.exp(-dt / n.heading_correlation_s)
-        f[_DPSI, _DPSI] = decay_psi
-        q = np.zeros((N_STATES, N_STATES))
-        q[_DV, _DV] = n.accel_psd * dt * np.eye(2)
-        q[_X, _X] = (g * n.arw_rad_per_sqrt_s) ** 2 * dt * np.eye(2)
+        f[9, 9] = decay_psi
         walk = 2.0 * dt / n.bias_correlation_s
-        q[_DB, _DB] = walk * n.accel_bias_sigma_mps2**2 * np.eye(2)
-        q[_DBZ, _DBZ] = walk * n.accel_bias_sigma_mps2**2
-        q[_DG, _DG] = walk * n.gyro_bias_sigma_rps**2 * np.eye(2)
-        q[_DPSI, _DPSI] = n.heading_sigma_rad**2 * (1.0 - decay_psi * decay_psi)
-        applied = e_applied * (dt / self.tau_s)
-        self._s = f @ self._s
-        self._s[_X] += applied
-        self._s[_DV] -= 0.5 * dt * applied
-        self._p = f @ self._p @ f.T + q
+        q_a = n.accel_psd * dt
+        q_x = (g * n.arw_rad_per_sqrt_s) ** 2 * dt
+        q_b = walk * n.accel_bias_sigma_mps2**2
+        q_g = walk * n.gyro_bias_sigma_rps**2
+        q_psi = n.heading_sigma_rad**2 * (1.0 - decay_psi * decay_psi)
+        s = f @ self._s
+        u_n, u_e = e_applied[0] * (dt / self.tau_s), e_applied[1] * (dt / self.tau_s)
+        s[0] -= 0.5 * dt * u_n
+        s[1] -= 0.5 * dt * u_e
+        s[2] += u_n
+        s[3] += u_e
+        self._s = s
+        p = f @ self._p @ f.T
+        p.flat[:: N_STATES + 1] += (q_a, q_a, q_x, q_x, q_b, q_b, q_g, q_g, q_b, q_psi)
+        self._set_p(p)
 
     def _update(self, vel_sigma_mps: float) -> bool:
         """Weigh the chain's velocity residual; False if it is beyond :data:`NIS_GATE`."""
         p = self._p
-        s_inv = np.linalg.inv(p[0:2, 0:2] + vel_sigma_mps**2 * np.eye(2))
-        y = self._r - self._s[_DV]
-        if float(y @ s_inv @ y) > NIS_GATE:
+        r2 = vel_sigma_mps**2
+        s00, s01, s10, s11 = p[0, 0] + r2, p[0, 1], p[1, 0], p[1, 1] + r2
+        det = s00 * s11 - s01 * s10
+        i00, i01, i10, i11 = s11 / det, -s01 / det, -s10 / det, s00 / det  # S^-1
+        y0, y1 = self._r[0] - self._s[0], self._r[1] - self._s[1]
+        if y0 * (i00 * y0 + i01 * y1) + y1 * (i10 * y0 + i11 * y1) > NIS_GATE:
             return False
-        k = p[:, 0:2] @ s_inv
-        self._s = self._s + k @ y
-        p = p - k @ _H @ p
-        self._p = 0.5 * (p + p.T)
+        k = p[:, 0:2] @ np.array(((i00, i01), (i10, i11)))
+        self._s = self._s + k @ np.array((y0, y1))
+        p = p - k @ p[0:2, :]
+        self._set_p(0.5 * (p + p.T))
         return True
 
 
