@@ -25,7 +25,7 @@ from gateway.fusion.engines import make_engine
 from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, SimRun, generate
 from sim_bus.truth import Truth
-from tests.kinematics import Motion, Segment, fed, gnss_stream, imu_stream, state_at
+from tests.kinematics import Motion, Segment, fed, gnss_stream, imu_stream, motion_time, state_at
 from tests.n2k_check import stated_tilts
 
 
@@ -49,8 +49,8 @@ def error_over_sigma(log: Path, truth: Truth) -> np.ndarray:
 
 @pytest.mark.parametrize(
     ("engine", "observer_table"),
-    [(Engine.OBSERVER, ""), (Engine.OBSERVER, "accel_bias_filter = true"), (Engine.EKF, "")],
-    ids=["observer", "observer-accel-bias-filter", "ekf"],
+    [(Engine.OBSERVER, ""), (Engine.OBSERVER, "accel_bias_filter = false"), (Engine.EKF, "")],
+    ids=["observer", "observer-eq12", "ekf"],
 )
 def test_roll_and_pitch_stay_within_their_stated_accuracy_from_a_cold_start_on_a_slope(
     engine: Engine, observer_table: str, slope_start: SimRun, tmp_path: Path
@@ -100,8 +100,8 @@ def test_on_a_first_straight_the_ekf_states_the_roll_it_cannot_tell_from_the_y_b
 
 @pytest.mark.parametrize(
     ("engine", "accel_bias_filter"),
-    [(Engine.OBSERVER, False), (Engine.OBSERVER, True), (Engine.EKF, False)],
-    ids=["observer", "observer-accel-bias-filter", "ekf"],
+    [(Engine.OBSERVER, True), (Engine.OBSERVER, False), (Engine.EKF, True)],
+    ids=["observer", "observer-eq12", "ekf"],
 )
 def test_a_paper_sized_accelerometer_bias_is_within_the_stated_accuracy_from_the_start(
     engine: Engine, accel_bias_filter: bool
@@ -133,6 +133,51 @@ def test_a_paper_sized_accelerometer_bias_is_within_the_stated_accuracy_from_the
         ratios.append(abs(sol.roll_rad - roll_true) / sol.sigma_tilt_rad)
     assert len(ratios) > 200
     assert max(ratios) < 3.0, max(ratios)
+
+
+@pytest.mark.parametrize(
+    ("engine", "accel_bias_filter"),
+    [(Engine.OBSERVER, True), (Engine.OBSERVER, False), (Engine.EKF, True)],
+    ids=["observer", "observer-eq12", "ekf"],
+)
+def test_a_paper_sized_bias_learnt_in_the_first_turn_is_within_the_stated_accuracy(
+    engine: Engine, accel_bias_filter: bool
+) -> None:
+    """Seed 000's bias size, 0.2/-0.15 m/s^2 (1.4 deg of tilt), then a U-turn. The
+    accel-bias filter learns it within the turn, while the tilt it held leaves the platform
+    only with the loop's tau: it stated 0.39 deg with roll still 1.17 deg off (field seed 5
+    with this bias and IMU stalls: 170 frames beyond 0.1 deg + 3 sigma); the stated accuracy
+    now carries the tilt the recent corrections left. Every roll and pitch sent within 0.1
+    deg + 3 stated sigmas, and the bias learnt by the end."""
+    drive = Motion(
+        [Segment(15.0), Segment(5.0, accel_mps2=0.6), Segment(20.0)]
+        + [Segment(15.0, yaw_rate_rps=math.pi / 15.0), Segment(30.0)],
+        yaw0_rad=0.0,
+    )
+    cfg = GatewayConfig(
+        vehicle=VehicleSection(antenna_lever_arm_m=(0.3, 0.0, -3.0)),
+        observer=ObserverConfig(accel_bias_filter=accel_bias_filter),
+    ).with_engine(engine)
+    imu = imu_stream(drive, bias_a_mps2=(0.2, -0.15, 0.0), noise_a_mps2=0.02, seed=6)
+    fixes = gnss_stream(drive, antenna_lever_arm_m=cfg.vehicle.antenna_lever_arm_m)
+    estimator = make_engine(cfg)
+    beyond, checked, last_err = [], 0, math.inf
+    for k, s in fed(estimator, imu, fixes):
+        sol = estimator.solution()
+        if k % 20 or sol.roll_rad is None or sol.pitch_rad is None:
+            continue
+        assert sol.sigma_tilt_rad is not None
+        last_err = math.degrees(max(abs(sol.roll_rad), abs(sol.pitch_rad)))  # level ground
+        if sol.mode in (Mode.DEGRADED, Mode.FAULT):
+            continue
+        checked += 1
+        if last_err > 0.1 + 3.0 * math.degrees(sol.sigma_tilt_rad):
+            beyond.append(f"{motion_time(s.t):.1f} s: {last_err:.2f} deg off, "
+                          f"{math.degrees(sol.sigma_tilt_rad):.2f} stated")  # fmt: skip
+    assert checked > 500
+    assert not beyond, beyond[:5]
+    if engine is Engine.EKF or accel_bias_filter:  # eq. (12) needs more than one turn
+        assert last_err < 0.2
 
 
 def test_a_warm_start_from_a_run_that_never_turned_states_the_bias_it_could_not_see() -> None:
