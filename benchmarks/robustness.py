@@ -2,6 +2,7 @@
 
 Run:  .venv/bin/python benchmarks/robustness.py                     # every variant, seed 1
       .venv/bin/python benchmarks/robustness.py --variants default gnss-1hz --seeds 1 2
+      .venv/bin/python benchmarks/robustness.py --engines observer observer-eq12
 
 Each variant changes one thing a user's setup may differ in (receiver rate, latency, clock,
 sentences, IMU mounting, IMU grade, antenna position, output rate of the IMU) against the
@@ -9,12 +10,15 @@ sentences, IMU mounting, IMU grade, antenna position, output rate of the IMU) ag
 config holding only the SPEC 5 [vehicle] keys (everything else at its default), and the
 output frames are decoded with the independent ``nmea2000`` package and compared with the
 truth after 10 minutes: roll, pitch, yaw RMS (127257) and the reference point's horizontal
-RMS and max (129025). Parameters are the product defaults; nothing here is tuned per variant.
+RMS and max (129025); and over the whole run the attitude frames that state an accuracy and
+those beyond 0.1 deg + 3 stated sigma of the truth (the never-lie check of docs/ROBUSTNESS.md).
+Parameters are the product defaults; nothing here is tuned per variant.
 """
 
 from __future__ import annotations
 
 import argparse
+import dataclasses
 import math
 import sys
 import tempfile
@@ -31,7 +35,12 @@ from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection
 from gateway.offline.log_replay import replay
 from sim_bus.scenarios import generate, scenario_from_toml
 from sim_bus.truth import Truth
-from tests.n2k_check import attitude_errors_deg, decode_log, position_errors_m
+from tests.n2k_check import (
+    attitude_errors_deg,
+    decode_log,
+    position_errors_m,
+    tilt_beyond_stated,
+)
 
 #: Variant name -> (what it changes, scenario overrides on the field preset).
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
@@ -105,12 +114,21 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
         {"vehicle": {"antenna_lever_arm_m": [1.5, 0.8, -3.5]}},
     ),
 }
-ENGINES = (Engine.OBSERVER, Engine.EKF)
+#: ``--engines`` names: the engine, and whether the observer learns its x/y accelerometer
+#: biases with the filter (``[observer] accel_bias_filter``, the default) or eq. (12).
+ENGINES = {
+    "observer": (Engine.OBSERVER, True),
+    "observer-eq12": (Engine.OBSERVER, False),
+    "ekf": (Engine.EKF, True),
+}
 AFTER_S = 600.0  # the targets' "after 10 minutes"
 
 
-def run_variant(name: str, seed: int) -> dict[str, tuple[float, ...]]:
-    """(roll, pitch, yaw RMS deg, ref RMS cm, ref max cm) of each engine on one variant."""
+def run_variant(
+    name: str, seed: int, engines: Sequence[str] = ("observer", "ekf")
+) -> dict[str, tuple[float, ...]]:
+    """(roll, pitch, yaw RMS deg, ref RMS cm, ref max cm, attitude frames stating an
+    accuracy, those beyond it) of each engine on one variant."""
     scenario = scenario_from_toml({"base": "field", "name": name, **VARIANTS[name][1]})
     out: dict[str, tuple[float, ...]] = {}
     with tempfile.TemporaryDirectory(prefix="navgw-rob-") as tmp:
@@ -121,19 +139,29 @@ def run_variant(name: str, seed: int) -> dict[str, tuple[float, ...]]:
             imu_lever_arm_m=tuple(float(v) for v in truth.imu_lever_arm_m),  # type: ignore[arg-type]
             imu_mounting_rpy_deg=scenario.imu.imu_mounting_rpy_deg,
         )
-        for engine in ENGINES:
-            frames = Path(tmp) / f"{engine.value}.log"
+        for label in engines:
+            engine, accel_bias_filter = ENGINES[label]
+            config = GatewayConfig(vehicle=vehicle).with_engine(engine)
+            observer = dataclasses.replace(config.observer, accel_bias_filter=accel_bias_filter)
+            frames = Path(tmp) / f"{label}.log"
             replay(
                 run.imu_log,
                 run.gnss_log,
                 frames,
-                GatewayConfig(vehicle=vehicle).with_engine(engine),
+                dataclasses.replace(config, observer=observer),
             )
             decoded = decode_log(frames)
             att = attitude_errors_deg(decoded, truth, AFTER_S)
             pos = position_errors_m(decoded, truth, AFTER_S) * 100.0
             rms = np.sqrt(np.mean(np.square(att), axis=0))
-            out[engine.value] = (*rms, math.sqrt(float(np.mean(pos**2))), float(np.max(pos)))
+            checked, beyond = tilt_beyond_stated(frames, truth)
+            out[label] = (
+                *rms,
+                math.sqrt(float(np.mean(pos**2))),
+                float(np.max(pos)),
+                checked,
+                len(beyond),
+            )
     return out
 
 
@@ -141,19 +169,22 @@ def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
     parser.add_argument("--seeds", nargs="+", type=int, default=[1])
+    parser.add_argument("--engines", nargs="+", choices=list(ENGINES), default=["observer", "ekf"])
     parser.add_argument("--jobs", type=int, default=2, help="worker processes")
     args = parser.parse_args(argv)
     jobs = [(v, s) for v in args.variants for s in args.seeds]
-    columns = ["roll rms", "pitch rms", "yaw rms", "ref rms cm", "ref max cm"]
+    columns = ["roll rms", "pitch rms", "yaw rms", "ref rms cm", "ref max cm", "frames", "beyond"]
     print("| variant | what changes | seed | engine | " + " | ".join(columns) + " |")
     print("|---" * (4 + len(columns)) + "|")
     names, seeds = [v for v, _ in jobs], [s for _, s in jobs]
     with ProcessPoolExecutor(args.jobs) as pool:
-        for (name, seed), result in zip(jobs, pool.map(run_variant, names, seeds), strict=True):
-            for engine, (roll, pitch, yaw, ref, ref_max) in result.items():
+        results = pool.map(run_variant, names, seeds, [args.engines] * len(jobs))
+        for (name, seed), result in zip(jobs, results, strict=True):
+            for engine, (roll, pitch, yaw, ref, ref_max, checked, beyond) in result.items():
                 print(
                     f"| {name} | {VARIANTS[name][0]} | {seed} | {engine} | {roll:.3f} | "
-                    f"{pitch:.3f} | {yaw:.3f} | {ref:.2f} | {ref_max:.2f} |",
+                    f"{pitch:.3f} | {yaw:.3f} | {ref:.2f} | {ref_max:.2f} | {checked:.0f} | "
+                    f"{beyond:.0f} |",
                     flush=True,
                 )
 
