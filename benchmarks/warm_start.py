@@ -61,10 +61,10 @@ def with_passes(scenario: Scenario, passes: int | None) -> Scenario:
 
 
 #: ``--engines`` names: the engine, and whether the observer learns its x/y accelerometer
-#: biases with the filter (``[observer] accel_bias_filter``) instead of eq. (12).
+#: biases with the filter (``[observer] accel_bias_filter``, the default) or eq. (12).
 VARIANTS = {
-    "observer": (Engine.OBSERVER, False),
-    "observer-filter": (Engine.OBSERVER, True),
+    "observer": (Engine.OBSERVER, True),
+    "observer-eq12": (Engine.OBSERVER, False),
     "ekf": (Engine.EKF, False),
 }
 

@@ -111,8 +111,8 @@ def test_observer_on_short_with_the_papers_biases() -> None:
     """End to end through the drivers (LogInputs) on the 2-minute scenario with seed 000's
     biases (0.08/0.13 deg/s, 0.11 m/s^2). Without bias estimation the tilt sits at
     b_g tau + b_a / g (0.5-0.8 deg per axis); over the last 20 s, after both U-turns have made
-    the accelerometer bias observable, the observer must be well below it (seeds 1-3 give
-    5.0-6.5x; the accelerometer bias is not fully converged after two turns)."""
+    the accelerometer bias observable, the observer must be well below it (with eq. 12,
+    seeds 1-3 gave 5.0-6.5x; its accelerometer bias is not fully converged after two turns)."""
     from accuracy import paper_scenario, run_engines, simulate_inputs
 
     data = simulate_inputs(paper_scenario("short"), seed=1)

@@ -13,7 +13,12 @@ import pytest
 from drivers.samples import ImuSample
 from gateway.calibration.forward_axis import ForwardAxisFit
 from gateway.calibration.imu_intervals import ImuIntervals
-from gateway.calibration.mounting import SAME_LINE, TURN_BOTH_WAYS, total_mounting_rpy_deg
+from gateway.calibration.mounting import (
+    MORE_LATERAL,
+    SAME_LINE,
+    TURN_BOTH_WAYS,
+    total_mounting_rpy_deg,
+)
 from gateway.calibration.travel_direction import TravelDirection
 from gateway.calibration.turn_axis import TurnAxisFit
 from gateway.calibration.work_windows import WorkWindow
@@ -97,11 +102,29 @@ def test_cli_corrects_a_wrong_mounting_with_a_line_load_config_accepts(
     assert re.search(r"roll +-?\d+\.\d\d \+/- 0\.\d\d", err)
 
 
+@pytest.mark.parametrize(
+    ("observer_table", "missing", "not_missing"),
+    [
+        # the accel-bias filter learns the x/y biases from one U-turn each way; the yaw
+        # needs more lateral acceleration than two U-turns give
+        ("", (SAME_LINE, MORE_LATERAL), TURN_BOTH_WAYS),
+        # eq. (12) has not learnt them after two U-turns: roll and pitch need more turning
+        ("[observer]\naccel_bias_filter = false\n", (SAME_LINE, TURN_BOTH_WAYS), None),
+    ],
+    ids=["accel-bias-filter", "eq12"],
+)
 def test_a_drive_missing_manoeuvres_says_which_and_exits_3(
-    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+    tmp_path: Path,
+    capsys: pytest.CaptureFixture[str],
+    observer_table: str,
+    missing: tuple[str, ...],
+    not_missing: str | None,
 ) -> None:
-    """Two minutes, one U-turn each way, adjacent passes: biases not learnt, no same line."""
+    """Two minutes, one U-turn each way, adjacent passes: no same line, and what else the
+    observer the config names still lacks."""
     simulate(tmp_path, "short", 3, (2.0, -3.0, 4.0), (0.0, 0.0, 0.0))
+    config = tmp_path / "navgw.toml"
+    config.write_text(config.read_text() + observer_table)
     status = main(
         ["calibrate", "--can", str(tmp_path / "imu.log"), "--nmea", str(tmp_path / "gnss.nmea"),
          "--config", str(tmp_path / "navgw.toml")]
@@ -109,7 +132,8 @@ def test_a_drive_missing_manoeuvres_says_which_and_exits_3(
     out, err = capsys.readouterr()
     assert status == 3
     assert out == ""
-    assert TURN_BOTH_WAYS in err and SAME_LINE in err
+    assert all(m in err for m in missing), err
+    assert not_missing is None or not_missing not in err
     assert "not every axis is determined" in err
 
 

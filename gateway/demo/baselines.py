@@ -213,7 +213,7 @@ def _ekf(setup: RunSetup, **overrides: float) -> Estimator:
 ENGINES: dict[str, Callable[[RunSetup], Estimator]] = {
     "observer": lambda s: ObserverEngine(s.observer_config()),
     "observer-no-bias": lambda s: ObserverEngine(s.observer_config(estimate_biases=False)),
-    "observer-filter": lambda s: ObserverEngine(s.observer_config(accel_bias_filter=True)),
+    "observer-eq12": lambda s: ObserverEngine(s.observer_config(accel_bias_filter=False)),
     "level": lambda s: LevelEngine(s.observer_config()),
     "mahony": lambda s: AhrsEngine("mahony", s.observer_config()),
     "madgwick": lambda s: AhrsEngine("madgwick", s.observer_config()),

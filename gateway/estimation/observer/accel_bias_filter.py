@@ -1,6 +1,7 @@
-"""A Kalman filter for the x/y accelerometer biases on the tilt loop's own residual (option).
+"""A Kalman filter for the x/y accelerometer biases on the tilt loop's own residual.
 
-The product's own extension of seed 000, off by default (``[observer] accel_bias_filter``):
+The product's own extension of seed 000, on by default (``[observer] accel_bias_filter``;
+false gives the paper's eq. 12):
 it takes the place of eq. (12) and leaves the attitude loop (eqs. 1-3) and eq. (11) as they
 are. Eq. (12) moves the bias by the control rate times the yaw rate: it learns only in turns,
 from the quadrature part of a loop that lags the turning error, and reads as bias whatever else

@@ -25,8 +25,8 @@ class ObserverConfig:
     omega_a_dps: float = 45.0  # accelerometer bias observer rate constant, eq. (12)
     estimate_biases: bool = True  # False: the "observer without bias estimation" baseline
     # x/y accelerometer biases from a Kalman filter on the tilt loop's residual, not eq. (12):
-    # the product's extension (docs/ACCURACY.md); false: the paper's observer
-    accel_bias_filter: bool = False
+    # the product's extension (docs/ACCURACY.md); false: the paper's eq. (12)
+    accel_bias_filter: bool = True
 
     # --- vehicle geometry (SPEC 5) ---
     antenna_lever_arm_m: Vec3Tuple = (0.0, 0.0, 0.0)  # antenna rel. reference point, body
