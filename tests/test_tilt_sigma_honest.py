@@ -98,11 +98,15 @@ def test_on_a_first_straight_the_ekf_states_the_roll_it_cannot_tell_from_the_y_b
     assert max(ratios) < 2.5, max(ratios)
 
 
-@pytest.mark.parametrize(
+#: Both engines, the observer with each x/y accelerometer bias law (the filter, eq. 12).
+ENGINES_AND_BIAS_LAWS = pytest.mark.parametrize(
     ("engine", "accel_bias_filter"),
     [(Engine.OBSERVER, True), (Engine.OBSERVER, False), (Engine.EKF, True)],
     ids=["observer", "observer-eq12", "ekf"],
 )
+
+
+@ENGINES_AND_BIAS_LAWS
 def test_a_paper_sized_accelerometer_bias_is_within_the_stated_accuracy_from_the_start(
     engine: Engine, accel_bias_filter: bool
 ) -> None:
@@ -135,11 +139,7 @@ def test_a_paper_sized_accelerometer_bias_is_within_the_stated_accuracy_from_the
     assert max(ratios) < 3.0, max(ratios)
 
 
-@pytest.mark.parametrize(
-    ("engine", "accel_bias_filter"),
-    [(Engine.OBSERVER, True), (Engine.OBSERVER, False), (Engine.EKF, True)],
-    ids=["observer", "observer-eq12", "ekf"],
-)
+@ENGINES_AND_BIAS_LAWS
 def test_a_paper_sized_bias_learnt_in_the_first_turn_is_within_the_stated_accuracy(
     engine: Engine, accel_bias_filter: bool
 ) -> None:
