@@ -18,7 +18,6 @@ Parameters are the product defaults; nothing here is tuned per variant.
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import math
 import sys
 import tempfile
@@ -31,7 +30,10 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection
+from warm_start import VARIANTS as ENGINES
+from warm_start import with_variant
+
+from gateway.config.gateway_config import GatewayConfig, VehicleSection
 from gateway.offline.log_replay import replay
 from sim_bus.scenarios import generate, scenario_from_toml
 from sim_bus.truth import Truth
@@ -114,13 +116,6 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
         {"vehicle": {"antenna_lever_arm_m": [1.5, 0.8, -3.5]}},
     ),
 }
-#: ``--engines`` names: the engine, and whether the observer learns its x/y accelerometer
-#: biases with the filter (``[observer] accel_bias_filter``, the default) or eq. (12).
-ENGINES = {
-    "observer": (Engine.OBSERVER, True),
-    "observer-eq12": (Engine.OBSERVER, False),
-    "ekf": (Engine.EKF, True),
-}
 AFTER_S = 600.0  # the targets' "after 10 minutes"
 
 
@@ -140,15 +135,12 @@ def run_variant(
             imu_mounting_rpy_deg=scenario.imu.imu_mounting_rpy_deg,
         )
         for label in engines:
-            engine, accel_bias_filter = ENGINES[label]
-            config = GatewayConfig(vehicle=vehicle).with_engine(engine)
-            observer = dataclasses.replace(config.observer, accel_bias_filter=accel_bias_filter)
             frames = Path(tmp) / f"{label}.log"
             replay(
                 run.imu_log,
                 run.gnss_log,
                 frames,
-                dataclasses.replace(config, observer=observer),
+                with_variant(GatewayConfig(vehicle=vehicle), label),
             )
             decoded = decode_log(frames)
             att = attitude_errors_deg(decoded, truth, AFTER_S)

@@ -69,12 +69,17 @@ VARIANTS = {
 }
 
 
-def configured(path: str | Path, name: str) -> GatewayConfig:
-    """The config file at ``path`` with the engine variant ``name`` of :data:`VARIANTS`."""
+def with_variant(config: GatewayConfig, name: str) -> GatewayConfig:
+    """``config`` with the engine variant ``name`` of :data:`VARIANTS`."""
     engine, accel_bias_filter = VARIANTS[name]
-    cfg = load_config(path).with_engine(engine)
+    cfg = config.with_engine(engine)
     observer = dataclasses.replace(cfg.observer, accel_bias_filter=accel_bias_filter)
     return dataclasses.replace(cfg, observer=observer)
+
+
+def configured(path: str | Path, name: str) -> GatewayConfig:
+    """The config file at ``path`` with the engine variant ``name`` of :data:`VARIANTS`."""
+    return with_variant(load_config(path), name)
 
 
 def _s(x: float | None) -> str:
