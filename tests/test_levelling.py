@@ -67,8 +67,27 @@ def test_a_speeding_up_window_carries_its_acceleration_over_g(accel_mps2: float)
         math.atan((accel_mps2 + math.sqrt(2.0) * 0.02) / GRAVITY_MPS2), rel=1e-9
     )
     assert math.degrees(sigma) > math.degrees(accel_mps2 / GRAVITY_MPS2)  # never below a/g
+    # a new window starts with the last velocity, the one at its start: moving, with no
+    # second one yet, its motion is unknown; then the acceleration since its start counts
     motion.restart()
-    assert motion.tilt_sigma_rad() == 0.0
+    assert motion.tilt_sigma_rad() == UNKNOWN_MOTION_TILT_RAD
+    motion.add(fix(101.5, 1.0 + accel_mps2 * 1.5))
+    assert motion.tilt_sigma_rad() == pytest.approx(
+        math.atan((accel_mps2 * 0.5 + math.sqrt(2.0) * 0.02) / (0.5 * GRAVITY_MPS2)), rel=1e-9
+    )
+
+
+def test_a_window_begun_in_the_last_of_a_stop_carries_the_braking() -> None:
+    """Braking from 0.14 m/s to 0 in 0.3 s: the window that begins on it sees only speeds
+    below the stationary speed, but the velocity at its start is the last fix before it
+    (headland-reversing seed 3: an engine restarted while braking levelled 0.6 deg off with
+    0.09 deg stated, the window taken for a rest)."""
+    motion = WindowMotion(vel_sigma_mps=0.02, stationary_speed_mps=0.1)
+    motion.add(fix(10.0, 0.14))
+    motion.restart()
+    for k, speed in enumerate((0.06, 0.02, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0)):
+        motion.add(fix(10.1 + 0.1 * k, speed))
+    assert math.degrees(motion.tilt_sigma_rad()) > 0.6 / 3.0
 
 
 def test_a_turn_at_constant_speed_is_an_acceleration_too() -> None:

@@ -480,7 +480,7 @@ class EkfEngine:
         An epoch whose time is ahead of the last IMU sample waits until the IMU covers it.
         """
         self._last_fix = fix
-        if self._p is None and self._win_t0_s is not None:
+        if self._p is None:  # (before a window too: the velocity at its start)
             self._win_motion.add(fix)
         if self._ins is None or fix.quality == FixQuality.NONE:
             return

@@ -490,7 +490,7 @@ class ObserverEngine:
         quantities of the same instant.
         """
         self._last_fix = fix
-        if self._observer is None and self._align_t0_s is not None:
+        if self._observer is None:  # (before a window too: the velocity at its start)
             self._align_motion.add(fix)
         if self._observer is None or fix.quality == FixQuality.NONE:
             return
