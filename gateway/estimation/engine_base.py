@@ -14,7 +14,7 @@ from typing import Any, Protocol
 
 from drivers.samples import FixQuality, GnssFix, ImuSample
 from drivers.units import GRAVITY_MPS2
-from gateway.estimation.solution import ImuTiming
+from gateway.estimation.solution import MAX_IMU_STEP_S, ImuTiming
 
 #: Epochs ahead of the IMU kept at most (a receiver far ahead of the IMU is a time fault).
 MAX_HELD_EPOCHS = 16
@@ -82,7 +82,10 @@ class ImuHealth:
         self.fault_s = fault_s
         self.timing = ImuTiming()
         self.alarm = False  # the last sample's EA bit
-        self.upset = False  # an alarm or saturation since the engine last cleared it
+        # an alarm, saturation or a bridged gap since the engine last cleared it: a tilt
+        # error that is none of the biases' (a gap of 0.8 s left 2.8 deg, and eq. (15)'s
+        # learning of its decay left 0.07 deg/s of gyro bias error: 0.5 deg of pitch for 10 s)
+        self.upset = False
         self.bad_since_s: float | None = None  # start of the current run of unusable samples
         self._bad_for_s = 0.0
 
@@ -97,7 +100,7 @@ class ImuHealth:
             self._mark_bad(t)
             return None
         self.alarm = sample.alarm
-        self.upset |= sample.alarm or sample.saturated
+        self.upset |= sample.alarm or sample.saturated or dt > MAX_IMU_STEP_S
         if sample.saturated:
             self._mark_bad(t)
         else:

@@ -7,7 +7,9 @@ live service, replay and tests run the same code; the engine is a config choice.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections import deque
+from collections.abc import Sequence
+from dataclasses import dataclass, field
 from enum import IntEnum
 from itertools import product
 from typing import Protocol
@@ -104,6 +106,21 @@ MAX_IMU_STEP_S = 0.05
 #: DEGRADED this long after a longer gap: the rotation over the gap was guessed from the
 #: rates at its end, and the tilt loop (tau 4 s) needs about this long to remove the error.
 IMU_GAP_DEGRADED_S = 5.0
+#: The samples before a gap whose spread tells what bridging it may have missed: 1 s at
+#: 204.8 Hz (the rocking of a vehicle on rough ground, 0.3-1 Hz, and the sensor noise).
+GAP_SPREAD_SAMPLES = 205
+#: A step longer than this many sample periods bridged lost samples (the sample clock is
+#: exact: a lost sample makes a step of two periods).
+BRIDGED_STEP = 1.5
+
+
+@dataclass(frozen=True, slots=True)
+class GapSigma:
+    """What bridging a gap in the IMU stream may have put in the solution, 1-sigma per body
+    axis: the rotation, rad, and the velocity, m/s."""
+
+    rotation_rad: Float3
+    velocity_mps: Float3
 
 
 @dataclass
@@ -113,12 +130,14 @@ class ImuTiming:
     t_s: float | None = None  # time of the last sample that moved time on
     gaps: int = 0  # steps longer than MAX_IMU_STEP_S
     degraded_until_s: float = -math.inf
+    recent: deque[ImuSample] = field(default_factory=lambda: deque(maxlen=GAP_SPREAD_SAMPLES))
 
     def step(self, sample: ImuSample) -> float:
         """Seconds ``sample`` closes: the time since the previous sample, so the samples lost
         between are bridged with this sample's rate and specific force (integrating only the
         nominal period never applied their rotation: 9 deg of yaw with 5 % of the frames
         lost); the nominal period for the first one. Not positive if time went back."""
+        self.recent.append(sample)
         if self.t_s is None:
             self.t_s = sample.t
             return sample.dt
@@ -130,9 +149,45 @@ class ImuTiming:
             self.degraded_until_s = sample.t + IMU_GAP_DEGRADED_S
         return dt
 
+    def bridged(self, sample: ImuSample, dt: float) -> GapSigma | None:
+        """What the step ``dt`` that ``sample`` closes may have missed, if it bridged lost
+        samples (None if it lost none: a step within :data:`BRIDGED_STEP` periods)."""
+        if dt <= BRIDGED_STEP * sample.dt:
+            return None
+        return bridged_sigma(self.recent, dt - sample.dt)
+
     def degraded(self) -> bool:
         """A gap in the IMU stream ended less than IMU_GAP_DEGRADED_S ago."""
         return self.t_s is not None and self.t_s < self.degraded_until_s
+
+
+def bridged_sigma(samples: Sequence[ImuSample], bridged_s: float) -> GapSigma:
+    """The error of holding one sample's rate and specific force over ``bridged_s`` of lost
+    samples, from how ``samples`` (those before the loss and the one that bridges it) move.
+
+    Over the lost span the true value went its own way from the one held, by about what the
+    stream moves in half that span: the root-mean-square difference of samples that far
+    apart (sqrt(2) sigma for white noise and vibration; less for the vehicle's rocking over
+    a short span, as much over a long one), integrated over the span. Taken as white noise
+    of the span's length instead, a 0.5 s gap left the tilt 0.4 deg off with 0.1 deg stated
+    5 s after it; and half the samples lost, eight at a time (no gap, steps of 44 ms),
+    0.4-0.6 deg with 0.1-0.16 stated.
+    """
+    n = len(samples)
+    if n < 2:
+        return GapSigma((0.0, 0.0, 0.0), (0.0, 0.0, 0.0))
+    lag = min(n - 1, max(1, round(0.5 * bridged_s / samples[-1].dt)))
+
+    def moved(axis: int, rate: bool) -> float:
+        v = [(s.w_ib_b if rate else s.f_ib_b)[axis] for s in samples]
+        return bridged_s * math.sqrt(
+            sum((v[i + lag] - v[i]) ** 2 for i in range(n - lag)) / (n - lag)
+        )
+
+    return GapSigma(
+        (moved(0, True), moved(1, True), moved(2, True)),
+        (moved(0, False), moved(1, False), moved(2, False)),
+    )
 
 
 def navigation_mode(

@@ -104,6 +104,7 @@ from gateway.estimation.lever_arm import (
     lever_arm_velocity_ned,
 )
 from gateway.estimation.solution import (
+    BRIDGED_STEP,
     MAX_IMU_STEP_S,
     Convergence,
     LearnedState,
@@ -250,6 +251,9 @@ class EkfEngine:
             self._hist = InsHistory(max(2, math.ceil(self.cfg.history_s / dt)))
         self._t_s = t
         if self._p is None:
+            if dt > MAX_IMU_STEP_S:
+                # the window's rotation across the gap is a guess (_bridge): a new window
+                self._win_t0_s = None
             self._align_tilt(t, w, f, dt)
         ins = self._ins
         if ins is None:
@@ -257,6 +261,8 @@ class EkfEngine:
                 self._hint.turn(w[2], dt)
             return
         ins.propagate(w, f, dt)
+        if dt > BRIDGED_STEP * sample.dt:
+            self._bridge(sample, dt)
         assert self._hist is not None
         self._hist.append((t, *ins.p_ned_m, *ins.v_ned_mps, *ins.c_bn9, *ins.w_b_rps))
         if self._p is not None and ins.sum_dt_s >= self._step_s:
@@ -267,6 +273,26 @@ class EkfEngine:
         if self._held:  # (no generator per sample when none waits)
             for t_e, fix in self._held.due(t):
                 self._fuse_epoch(fix, t_e)
+
+    def _bridge(self, sample: ImuSample, dt: float) -> None:
+        """``sample`` closes a step of ``dt`` that bridges lost samples (:class:`ImuTiming`):
+        the attitude and velocity it held over them are uncertain by what
+        :func:`bridged_sigma` says, body axes, which P takes in NED (covariance predicted to
+        now first); before the filter runs, the levelled tilt's sigma takes it until the
+        next levelling. With the white noise of the step's length alone, 0.8 s gaps left the
+        tilt 3 deg off with 0.6 stated; levelled, not yet filtering, 0.9 deg off with 0.05
+        stated."""
+        assert self._ins is not None
+        gap = self._imu.timing.bridged(sample, dt)
+        assert gap is not None
+        if self._p is None:
+            r = gap.rotation_rad
+            self._sigma_level_rad = math.hypot(self._sigma_level_rad, max(r[0], r[1]))
+            return
+        self._predict()
+        c = np.array(self._ins.c_bn9).reshape(3, 3)
+        self._p[ATT, ATT] += c @ np.diag(np.square(gap.rotation_rad)) @ c.T
+        self._p[VEL, VEL] += c @ np.diag(np.square(gap.velocity_mps)) @ c.T
 
     def _predict(self) -> None:
         """Covariance prediction over the IMU samples since the last one."""

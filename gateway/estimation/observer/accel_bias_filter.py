@@ -140,6 +140,20 @@ class AccelBiasFilter:
             self._advance(t_s, (0.0, 0.0), c9)
             self._chained = False
 
+    def bridge(self, t_s: float, c9: Mat9, sigma_rad: float, new_chain: bool) -> None:
+        """Lost IMU samples were bridged at ``t_s``, turning the platform by an error of
+        ``sigma_rad`` 1-sigma about each horizontal axis: the tilt error's variance takes it
+        (not a bias: taken as one, the tilt a 0.9 s gap left stayed 0.6 deg off for 10 s, the
+        bias estimate holding it); after a gap (``new_chain``) the next epoch starts a new
+        chain."""
+        if not self.started:
+            return
+        if new_chain:
+            self.open(t_s, c9)
+        p = self._p.copy()
+        p[_X, _X] += (self.g_mps2 * sigma_rad) ** 2 * np.eye(2)
+        self._set_p(p)
+
     def lose_tilt(self, t_s: float, c9: Mat9) -> None:
         """The platform's tilt is off by more than the model follows (the engine corrects with
         a clipped e, beyond its glitch gate): the tilt error is taken as unknown, apart from

@@ -245,6 +245,14 @@ class HeadingChannel:
         arw = self.cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self._p_psi_rad2 += arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
 
+    def bridged(self, sigma_rad: float, restart: bool) -> None:
+        """Lost IMU samples were bridged, turning the heading by an error of ``sigma_rad``
+        1-sigma: the variance takes it, and after a gap (``restart``) the bias interval
+        restarts (the heading's drift over it is no longer the z bias's)."""
+        if restart:
+            self._window = None
+        self._p_psi_rad2 += sigma_rad**2
+
     def aligned(self, sigma_rad: float) -> None:
         """Heading was just set directly (alignment, realignment) to a reference of
         ``sigma_rad``: restart the bias interval and the heading variance."""

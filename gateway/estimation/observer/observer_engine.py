@@ -72,6 +72,8 @@ from gateway.estimation.observer.position_channel import PositionChannel
 from gateway.estimation.observer.rest_window import RestWindow
 from gateway.estimation.observer.tereshkov import TereshkovObserver
 from gateway.estimation.solution import (
+    BRIDGED_STEP,
+    MAX_IMU_STEP_S,
     LearnedState,
     Mode,
     Solution,
@@ -123,6 +125,9 @@ ACCEL_BIAS_Z_FLOOR_MPS2 = 0.003
 #: The x/y accelerometer bias estimate tells the size of the turn-on bias once the learning
 #: exponent has taken out this much of it (:meth:`ObserverEngine._sigma_ba_mps2`).
 SHOWN_BIAS_MIN_LEARNT = 0.2
+#: The IMU noise measured at rest is logged when its excess over the config's has changed by
+#: more than this (relative) since it was last logged: it is measured again at every stop.
+NOISE_TOLD_CHANGE = 0.25
 
 # History row: a plain tuple (one per IMU sample, so no object overhead), read by these names:
 # time; integral of f_p N, E, D (m/s); platform heading psi; cumulative heading correction;
@@ -199,6 +204,8 @@ class ObserverEngine:
         self._noise = noise or ImuNoiseMeter()  # the IMU's white noise at rest, vibration too
         self._imu_dt_s = 0.0  # the IMU's sample period, s
         self._floor_scale = 1.0  # the residual bias floors, for the noise measured
+        self._noise_told = 1.0  # the noise excess last logged
+        self._gap_end_s = -math.inf  # IMU time of the last sample that bridged a gap
         self._accel_psd = 0.0  # the accelerometer's white noise, (m/s^2)^2/Hz, as measured
         self._mounting_var = (cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         self._v_imu_ned_mps = [0.0, 0.0, 0.0]  # IMU-point velocity while coasting
@@ -263,17 +270,19 @@ class ObserverEngine:
         w, f = sample.w_ib_b, sample.f_ib_b
         self._t_s = t
         if self._stationary:  # the sample period is needed only where the noise is taken
-            self._imu_dt_s = dt
+            self._imu_dt_s = sample.dt
             self._noise.add(w, f)
         obs = self._observer
         if obs is None:
-            self._imu_dt_s = dt
+            self._imu_dt_s = sample.dt
             if self._hint is not None:
                 self._hint.turn(w[2], dt)
             self._align_tilt(t, w, f)
             return
         if self._control_until_s is not None and t > self._control_until_s:
             self._end_control()
+        if dt > BRIDGED_STEP * sample.dt:
+            self._bridge(sample, dt)
         fpn, fpe, fpd = obs.propagate(w, f, dt)
         c = obs.c_bp9
         if self._coasting:
@@ -299,6 +308,27 @@ class ObserverEngine:
         if self._held:  # (no generator per sample when none waits)
             for t_e, fix in self._held.due(t):
                 self._correct(fix, t_e)
+
+    def _bridge(self, sample: ImuSample, dt: float) -> None:
+        """``sample`` closes a step of ``dt`` that bridges lost samples (:class:`ImuTiming`):
+        the rotation it holds over them is uncertain by what :func:`bridged_sigma` says,
+        which the stated tilt takes (decaying with tau as the loop removes it), and the
+        heading channel's and accel-bias filter's variances too. A gap (beyond
+        MAX_IMU_STEP_S) also ends the chain of eq. (3)'s differences: the specific-force
+        integral across it is no base for the next one (a held sample's vibration over 0.5 s
+        is 0.2 m/s of velocity: a glitch, then applied clipped once it persisted, and the
+        tilt went 0.7 deg off), and the heading's bias interval: its drift is no bias's."""
+        gap = self._imu.timing.bridged(sample, dt)
+        assert gap is not None and self._observer is not None
+        r = gap.rotation_rad
+        sigma_tilt = max(r[0], r[1])
+        self._sigma_level_rad = math.hypot(self._sigma_level_rad, sigma_tilt)
+        long = dt > MAX_IMU_STEP_S
+        self._heading.bridged(r[2], restart=long)
+        if self._ba_filter is not None:
+            self._ba_filter.bridge(sample.t, self._observer.c_bp9, sigma_tilt, new_chain=long)
+        if long:
+            self._gap_end_s = sample.t
 
     def _propagate_navigation(self, fpn: float, fpe: float, fpd: float, dt: float) -> None:
         """Reference-point velocity and position from a = f_p + g; f_p integral for eq. (3).
@@ -720,7 +750,8 @@ class ObserverEngine:
         r_g, r_a = self._noise.excess(
             math.hypot(arw / math.sqrt(dt), cfg.vibration_gyro_dps * DEG_TO_RAD), sigma_a
         )
-        if self._floor_scale == 1.0 < max(r_g, r_a):  # once: it refines at every rest
+        if abs(max(r_g, r_a) / self._noise_told - 1.0) > NOISE_TOLD_CHANGE:
+            self._noise_told = max(r_g, r_a)
             log.info(
                 "IMU noise at rest %.1f times (gyro) and %.1f times (accelerometer) the "
                 "config's, engine vibration included: the stated accuracy follows it",
@@ -1011,7 +1042,11 @@ class ObserverEngine:
         prev = self._prev_epoch
         current = (t_e, v_imu_n, v_imu_e, row)
         interval_s = 0.0 if prev is None else t_e - prev[0]
-        if prev is None or not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
+        if (
+            prev is None
+            or not 0.0 < interval_s <= self.cfg.max_gnss_interval_s
+            or prev[0] < self._gap_end_s  # the interval spans a bridged gap
+        ):
             self._prev_epoch = current
             self._set_tilt_open(t_e)
             return False
