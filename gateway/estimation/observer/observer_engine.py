@@ -113,6 +113,8 @@ BODY_X_LOOP_S = 5.0
 #: of the fix's velocity noise (:meth:`ObserverEngine._antenna_velocity`).
 DIRECTION_SIGMAS = 3.0
 DIRECTION_DV_FLOOR_MPS = 0.02
+#: A speed beyond this many sigma of the fix's velocity noise is creeping, not standing still.
+CREEP_SIGMAS = 3.0
 #: Body rate for the stationarity test: mean over this long before the epoch.
 STATIONARY_RATE_WINDOW_S = 0.2
 #: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
@@ -574,7 +576,16 @@ class ObserverEngine:
         rate_limit = self.cfg.stationary_rate_dps * DEG_TO_RAD + 3.0 * self._sigma_bg_rps()
         self._stationary = self._at_rest and math.hypot(*w_still) < rate_limit
         self._hold_control(t_e)
-        v_tilt, closed = (v_imu[0], v_imu[1]), self._heading_aligned or self._at_rest
+        # Before the heading is known, creeping under the stationary speed is no velocity
+        # reference: its direction may be a course the receiver holds from before the stop
+        # (the simulator's, u-blox's below 0.1 m/s), and v = 0 is not the velocity either.
+        # Closed on it, a pull-away after a restart kicked pitch 0.2 deg as the held course
+        # turned, 0.39 deg off with 0.09 stated (steep-turns seed 7, stalls): the loop stays
+        # open for those epochs, until the speed along body x takes over.
+        sigma_v = fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps)
+        creeping = speed_ref > CREEP_SIGMAS * sigma_v
+        rest_reference = self._at_rest and (self._heading_aligned or not creeping)
+        v_tilt, closed = (v_imu[0], v_imu[1]), self._heading_aligned or rest_reference
         if not self._heading_aligned:
             self._direction_from_hint(fix, v_ant, c_e, w_lever, row)
             along_x = self._velocity_along_body_x(fix, t_e, c_e, w_lever, row)
