@@ -290,7 +290,7 @@ class EkfEngine:
             self._sigma_level_rad = math.hypot(self._sigma_level_rad, max(r[0], r[1]))
             return
         self._predict()
-        c = np.array(self._ins.c_bn9).reshape(3, 3)
+        c = self._ins.c_bn
         self._p[ATT, ATT] += c @ np.diag(np.square(gap.rotation_rad)) @ c.T
         self._p[VEL, VEL] += c @ np.diag(np.square(gap.velocity_mps)) @ c.T
 

@@ -150,9 +150,7 @@ class AccelBiasFilter:
             return
         if new_chain:
             self.open(t_s, c9)
-        p = self._p.copy()
-        p[_X, _X] += (self.g_mps2 * sigma_rad) ** 2 * np.eye(2)
-        self._set_p(p)
+        self._p[_X, _X] += (self.g_mps2 * sigma_rad) ** 2 * np.eye(2)  # (not the bias block)
 
     def lose_tilt(self, t_s: float, c9: Mat9) -> None:
         """The platform's tilt is off by more than the model follows (the engine corrects with
