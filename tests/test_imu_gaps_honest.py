@@ -16,6 +16,7 @@ lost in runs too short to be a gap, all along.
 from __future__ import annotations
 
 import random
+import re
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -114,3 +115,19 @@ def test_frames_after_bridged_gaps_are_within_their_stated_accuracy(
     checked, beyond = tilt_beyond_stated(out, truth)
     assert checked > 1500  # attitude frames outside DEGRADED, with an accuracy stated
     assert len(beyond) <= 0.005 * checked, "\n".join(beyond[:10])
+
+
+def test_resets_after_gaps_are_logged_at_a_sane_rate(
+    drive: Path, tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """Bursts of gaps reset the EKF's position and velocity at the first fix after each
+    (a dozen or more on this drive); the journal gets one line per 10 s of input with the
+    count of the ones it left out, not a line per reset."""
+    imu = with_gaps(drive / "imu.log", tmp_path / "imu.log", "bursts", 1)
+    config = load_config(None).with_engine(Engine.EKF)
+    with caplog.at_level("WARNING", logger="gateway"):
+        summary = replay(imu, drive / "gnss.nmea", tmp_path / "out.log", config)
+    lines = [r.getMessage() for r in caplog.records if "reset to it (an IMU gap)" in r.getMessage()]
+    left_out = sum(int(m) for line in lines for m in re.findall(r"\((\d+) more since", line))
+    assert len(lines) + left_out >= 10  # the resets the reported lines account for
+    assert 1 <= len(lines) <= summary.log_span_s / 10.0 + 1

@@ -855,16 +855,18 @@ class EkfEngine:
 
         Attitude and biases are kept; position and velocity restart from the fix with their
         cross-covariances dropped (the old ones described a state that was just replaced).
+        Logged once per cause per 10 s: an overloaded gateway bridges a gap every few seconds.
         """
         self.counters.resets += 1
-        log.warning(
-            "GNSS position at t=%.3f: position and velocity reset to it (%s)",
-            t_e,
+        cause = (
             "positions rejected"
             if self._track.rejecting_since_s is not None
             else "an IMU gap"
             if self._imu.timing.gaps != self._imu_gaps_at_reset
-            else "an outage",
+            else "an outage"
+        )
+        self._log.warning(
+            t_e, f"GNSS position at t={t_e:.3f}: position and velocity reset to it ({cause})", cause
         )
         self._set_from_fix(fix, t_e, row)
         self._last_quality = fix.quality
