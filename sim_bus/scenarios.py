@@ -214,15 +214,18 @@ SCENARIOS: dict[str, Scenario] = {
 }
 
 
-def scenario_from_toml(table: dict[str, Any], where: str = "scenario") -> Scenario:
-    """A scenario from a TOML document: ``base = "field"`` plus overriding tables.
+def scenario_from_toml(
+    table: dict[str, Any], where: str = "scenario", default_base: str = "field"
+) -> Scenario:
+    """A scenario from a TOML document: ``base = "field"`` (``default_base`` if it has none)
+    plus overriding tables.
 
     Tables ``[vehicle]``, ``[imu]``, ``[bridge]``, ``[gnss]`` override fields of the base
     scenario's configs by name (e.g. ``[imu] gyro_turn_on_bias_rps = [0.001, 0.002, 0]``);
     an unknown key is an error that names it.
     """
     table = dict(table)
-    base_name = table.pop("base", "field")
+    base_name = table.pop("base", default_base)
     if base_name not in SCENARIOS:
         raise ConfigError(f"{where}.base = {base_name!r}: expected one of {', '.join(SCENARIOS)}")
     base = SCENARIOS[base_name]

@@ -48,6 +48,24 @@ def test_sim_writes_its_vehicle_config_and_the_replay_command_that_uses_it(
     assert "frames" in replayed and "lever_arm" not in replayed  # no zero-lever-arm warning
 
 
+def test_the_named_scenario_is_the_base_of_a_config_without_one(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """``navgw sim short --config mounted.toml`` simulates ``short`` with the file's
+    overrides (it simulated the 16-minute field run instead); a file whose ``base`` is
+    another scenario than the one named is an error naming both."""
+    overrides = tmp_path / "mounted.toml"
+    overrides.write_text("[vehicle]\nn_passes = 1\nstart_stop_s = 5.0\n")
+    assert main(["sim", "short", "--config", str(overrides), "--out", str(tmp_path / "a")]) == 0
+    name, simulated = capsys.readouterr().out.split(" s simulated")[0].split(": ")
+    assert name == "short*" and float(simulated) < 60.0  # one short pass, not field's 16 min
+    contradicting = tmp_path / "field.toml"
+    contradicting.write_text('base = "field"\n')
+    assert main(["sim", "short", "--config", str(contradicting)]) == 2
+    err = capsys.readouterr().err
+    assert "base = 'field', but the command names 'short'" in err
+
+
 def test_sim_help_names_the_out_option_as_a_directory(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

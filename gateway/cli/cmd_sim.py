@@ -28,9 +28,8 @@ def add_subparser(
     p.add_argument(
         "scenario",
         nargs="?",
-        default="field",
         metavar="NAME",
-        help="built-in scenario, listed above (default field)",
+        help="built-in scenario, listed above (default field, or the --config file's base)",
     )
     p.add_argument("--out", type=Path, metavar="DIR", help="output directory (default ./sim-NAME)")
     p.add_argument("--seed", type=int, default=0, help="random seed of the run (default 0)")
@@ -38,19 +37,27 @@ def add_subparser(
         "--config",
         type=Path,
         metavar="FILE",
-        help="TOML file: base = NAME plus [vehicle]/[imu]/[bridge]/[gnss] overrides",
+        help="TOML file: [vehicle]/[imu]/[bridge]/[gnss] overrides of NAME "
+        "(or of the file's base = NAME)",
     )
     p.set_defaults(func=run)
 
 
 def _scenario(args: argparse.Namespace) -> Scenario:
-    if args.config is not None:
-        return scenario_from_toml(load_toml(args.config), str(args.config))
-    if args.scenario not in SCENARIOS:
+    """NAME, with the --config file's overrides: the file's ``base`` if NAME is not given
+    (a NAME the file's ``base`` contradicts is an error, not a silent choice)."""
+    name: str | None = args.scenario
+    if name is not None and name not in SCENARIOS:
+        raise ConfigError(f"unknown scenario {name!r}: expected one of {', '.join(SCENARIOS)}")
+    if args.config is None:
+        return SCENARIOS[name or "field"]
+    table = load_toml(args.config)
+    if name is not None and table.get("base", name) != name:
         raise ConfigError(
-            f"unknown scenario {args.scenario!r}: expected one of {', '.join(SCENARIOS)}"
+            f"{args.config}: base = {table['base']!r}, but the command names {name!r}: "
+            "give the scenario once"
         )
-    return SCENARIOS[args.scenario]
+    return scenario_from_toml(table, str(args.config), default_base=name or "field")
 
 
 def run(args: argparse.Namespace) -> int:
