@@ -59,6 +59,7 @@ from gateway.estimation.attitude import (
     skew,
     to_mat9,
 )
+from gateway.estimation.bias_change import BiasChange, TiltCorrections, bias_change_text
 from gateway.estimation.ekf.ekf_config import EkfConfig, EkfTuning
 from gateway.estimation.ekf.error_state import (
     ATT,
@@ -153,6 +154,7 @@ class EkfCounters:
     nonholonomic_rejected: int = 0
     late_epochs: int = 0  # epoch older than the INS history: dropped
     resets: int = 0  # position/velocity re-initialised from GNSS
+    bias_changes: int = 0  # x/y biases re-opened: a change beyond their in-run model
 
 
 class EkfEngine:
@@ -171,6 +173,7 @@ class EkfEngine:
         self.cfg = cfg
         self.counters = EkfCounters()
         self._log = LogLimiter(log)
+        self._corrections = TiltCorrections()  # recent attitude corrections: a bias change?
         self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
@@ -600,6 +603,7 @@ class EkfEngine:
         if accepted:
             self._t_accepted_rx_s = fix.t
             self._inject(dx, t_e)
+            self._watch_corrections(t_e)
         t = self._t_s
         assert t is not None  # (the history has rows)
         if t - self._t_nhc_s >= self.cfg.nhc_interval_s - NHC_SLACK_S:
@@ -646,6 +650,7 @@ class EkfEngine:
         same error again: 8 m of error with epochs 4 s late in 2 s bursts, 0.x m with it.
         """
         assert self._ins is not None and self._hist is not None and self._t_s is not None
+        self._corrections.add(t_e, float(dx[6]), float(dx[7]), self._p_tilt_sigma_rad())
         rot = self._ins.inject(dx, max(0.0, self._t_s - t_e))
         self._hist.shift(dx[POS], dx[VEL], rot, t_e)
         self._fix_err_ned_m += dx[FIX]
@@ -711,12 +716,7 @@ class EkfEngine:
         p[BA, BA] = sig_ba**2 * np.eye(3)
         p[BG, BG] = sig_bg**2 * np.eye(3)
         p[ATT, ATT] = np.diag([sig_tilt**2, sig_tilt**2, sig_yaw**2])
-        # Levelling on the mean specific force makes the tilt error and the accelerometer
-        # bias error one quantity: C dba = g (-phi_E, phi_N, .). Tilt = M dba + drift.
-        c_bn = ins.c_bn
-        m = np.zeros((3, 3))
-        m[0] = c_bn[1] / GRAVITY_MPS2
-        m[1] = -c_bn[0] / GRAVITY_MPS2
+        m = _tilt_of_accel_bias(ins.c_bn)
         if self._seed is None:
             p[ATT, ATT] += sig_ba**2 * m @ m.T
             p[ATT, BA] = sig_ba**2 * m
@@ -731,6 +731,41 @@ class EkfEngine:
         self._set_from_fix(fix, t_e, row_aligned)
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
+
+    def _watch_corrections(self, t_e: float) -> None:
+        """After an epoch's correction: beyond what the noise and P's gyro bias and tilt
+        explain (:class:`TiltCorrections`), the biases changed."""
+        change = self._corrections.check(*self._correction_sigmas())
+        if change is not None:
+            self._bias_changed(t_e, change)
+
+    def _bias_changed(self, t_e: float, change: BiasChange) -> None:
+        """The x/y biases changed beyond their in-run model (:mod:`gateway.estimation.
+        bias_change`): P's gyro block re-opens by the window's rate, its accelerometer block
+        by the tilt taken (as a specific force) along the direction no fix tells apart: the
+        tilt the bias makes (as at levelling) and the IMU position error that tilt makes
+        through the lever arm, the antenna being where the fixes say (as at a reset,
+        :meth:`_set_from_fix`). Without the position term the next fix "observed" the tilt
+        and took P's tilt back to 0.1 deg while roll stayed 1.4 deg off. The unobserved-bias
+        share of the stated tilt (:meth:`_unobserved_bias_var`) comes back with it."""
+        p, ins = self._p, self._ins
+        assert p is not None and ins is not None
+        if change.again:
+            self._log.warning(t_e, bias_change_text(t_e, change, 0.0, 0.0), "bias change")
+            return
+        c_bn = ins.c_bn
+        j = np.zeros((N_STATES, 2))  # the error per unit x/y accelerometer bias change
+        j[BA.start : BA.start + 2] = np.eye(2)
+        j[ATT] = _tilt_of_accel_bias(c_bn)[:, :2]
+        j[POS] = skew(c_bn @ self._l_imu_ant_b) @ j[ATT]
+        sigma_a, sigma_g = GRAVITY_MPS2 * change.tilt_rad, change.rate_rps
+        p += sigma_a * sigma_a * (j @ j.T)
+        for i in (BG.start, BG.start + 1):
+            p[i, i] += sigma_g * sigma_g
+        self.counters.bias_changes += 1
+        sigma_ba = math.sqrt(max(p.item(BA.start, BA.start), p.item(BA.start + 1, BA.start + 1)))
+        sigma_bg = math.sqrt(max(p.item(BG.start, BG.start), p.item(BG.start + 1, BG.start + 1)))
+        self._log.warning(t_e, bias_change_text(t_e, change, sigma_ba, sigma_bg), "bias change")
 
     def _noise_as_measured(self, tun: EkfTuning) -> EkfTuning:
         """The white rate and acceleration noise the IMU showed at rest, where it is more
@@ -797,13 +832,9 @@ class EkfEngine:
         p, tun = self._p, self._tuning
         mounting_var = (self.cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         if p is not None:
-            a, b, d = p.item(6, 6), p.item(6, 7), p.item(7, 7)
-            worse = 0.5 * (a + d) + math.sqrt(0.25 * (a - d) ** 2 + b * b)  # larger eigenvalue
-            step = self._tilt_step_rad(self._t_s) if self._t_s is not None else 0.0
-            bx, by = BA.start, BA.start + 1
-            var_ba = max(p.item(bx, bx), p.item(by, by))
-            unobserved = self._unobserved_bias_var(var_ba) / GRAVITY_MPS2**2
-            return math.sqrt(max(worse + unobserved, step * step) + mounting_var)
+            model = self._p_tilt_sigma_rad()
+            excess = self._corrections.excess_rad(*self._correction_sigmas(model))
+            return math.sqrt(model * model + excess * excess + mounting_var)
         if self._ins is None or tun is None or self._t_s is None:
             return None
         var_ba = tun.sigma_bias_a0_mps2**2
@@ -815,6 +846,30 @@ class EkfEngine:
             + self._drift_var_rad2(self._t_s)
             + mounting_var
         )
+
+    def _p_tilt_sigma_rad(self) -> float:
+        """The filter's roll/pitch 1-sigma: P's worse horizontal tilt axis with the
+        unobserved share of the accelerometer bias, or the latest tilt step if more."""
+        p = self._p
+        assert p is not None
+        a, b, d = p.item(6, 6), p.item(6, 7), p.item(7, 7)
+        worse = 0.5 * (a + d) + math.sqrt(0.25 * (a - d) ** 2 + b * b)  # larger eigenvalue
+        step = self._tilt_step_rad(self._t_s) if self._t_s is not None else 0.0
+        bx, by = BA.start, BA.start + 1
+        var_ba = max(p.item(bx, bx), p.item(by, by))
+        unobserved = self._unobserved_bias_var(var_ba) / GRAVITY_MPS2**2
+        return math.sqrt(max(worse + unobserved, step * step))
+
+    def _correction_sigmas(self, sigma_tilt_rad: float | None = None) -> tuple[float, float, float]:
+        """What :class:`TiltCorrections` weighs the tilt corrections with: the gyro's white
+        noise, P's x/y gyro bias 1-sigma and the filter's tilt 1-sigma (``sigma_tilt_rad``
+        if given)."""
+        p, tun = self._p, self._tuning
+        assert p is not None and tun is not None
+        var_bg = max(p.item(BG.start, BG.start), p.item(BG.start + 1, BG.start + 1))
+        if sigma_tilt_rad is None:
+            sigma_tilt_rad = self._p_tilt_sigma_rad()
+        return math.sqrt(tun.q_gyro_rad2_per_s), math.sqrt(var_bg), sigma_tilt_rad
 
     def _unobserved_bias_var(self, var_ba: float) -> float:
         """Variance, (m/s^2)^2, of a turn-on accelerometer bias beyond P0's (``[ekf]
@@ -1143,3 +1198,13 @@ class EkfEngine:
             imu_gap=self._imu.timing.degraded(),
             gnss_glitch=self._track.rejecting_since_s is not None,
         )
+
+
+def _tilt_of_accel_bias(c_bn: Array) -> Array:
+    """M with tilt error = M dba, NED, of a platform levelled on the mean specific force:
+    levelling makes the tilt error and the accelerometer bias error one quantity,
+    C dba = g (-phi_E, phi_N, .)."""
+    m = np.zeros((3, 3))
+    m[0] = c_bn[1] / GRAVITY_MPS2
+    m[1] = -c_bn[0] / GRAVITY_MPS2
+    return m

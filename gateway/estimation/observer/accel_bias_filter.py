@@ -164,6 +164,23 @@ class AccelBiasFilter:
         self._p[:, _X] = 0.0
         self._p[_X, _X] = (self.g_mps2 * LOST_TILT_SIGMA_RAD) ** 2 * np.eye(2)
 
+    def reopen(self, sigma_ba_mps2: float, sigma_bg_rps: float, c9: Mat9) -> None:
+        """The x/y biases changed beyond the model (:mod:`gateway.estimation.bias_change`):
+        the accelerometer's by up to ``sigma_ba_mps2`` 1-sigma, taken into the platform's tilt
+        as a levelling takes it (x = -C_h db, as at :meth:`start`), the gyro's by
+        ``sigma_bg_rps``."""
+        if not self.started:
+            return
+        c_h = _c_h(c9)
+        sb2 = sigma_ba_mps2**2
+        p = self._p.copy()
+        p[_X, _X] += sb2 * c_h @ c_h.T
+        p[_X, _DB] -= sb2 * c_h
+        p[_DB, _X] -= sb2 * c_h.T
+        p[_DB, _DB] += sb2 * np.eye(2)
+        p[_DG, _DG] += sigma_bg_rps**2 * np.eye(2)
+        self._set_p(p)
+
     def rotate(self, phi_rad: tuple[float, float, float]) -> None:
         """The platform was turned by C <- exp([phi]x) C: its tilt error moves by -phi."""
         self._s[2] -= self.g_mps2 * phi_rad[1]

@@ -34,6 +34,7 @@ from gateway.estimation.attitude import (
     roll_pitch_from_specific_force,
     rpy_from_mat9,
 )
+from gateway.estimation.bias_change import BiasChange, TiltCorrections, bias_change_text
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.engine_base import (
     HeldEpochs,
@@ -150,6 +151,7 @@ class ObserverCounters:
     position_rejected: int = 0  # position residual beyond the gate: a glitch
     position_resets: int = 0  # rejected for ``position_reset_s``: reset to the GNSS
     late_epochs: int = 0  # epoch older than the IMU history: dropped
+    bias_changes: int = 0  # x/y biases re-opened: a change beyond their in-run model
 
 
 class ObserverEngine:
@@ -249,6 +251,7 @@ class ObserverEngine:
         self._control_from_s = 0.0  # IMU time they began
         self._control_period_s = 0.0  # the epoch period they are meant for
         self._rejecting_since_s: float | None = None  # epoch time glitches began, if ongoing
+        self._corrections = TiltCorrections()  # the loop's recent tilt control: a bias change?
         # IMU health
         self._imu = ImuHealth(cfg.imu_fault_s)  # timing, alarm, saturation, FAULT
         self.counters = ObserverCounters()
@@ -1086,6 +1089,7 @@ class ObserverEngine:
             self._set_tilt_open(t_e)
             return False
         obs.correct_tilt(e_n * scale, e_e * scale)
+        self._watch_corrections(t_e, e_n, e_e, interval_s)
         if self._ba_filter is not None and not glitch:
             self._filter_epoch(t_e, (e_n, e_e), (row, prow), interval_s)
         self._sigma_level_rad *= math.exp(-interval_s / self.cfg.tau_s)
@@ -1123,6 +1127,51 @@ class ObserverEngine:
         n, e = self._ba_tilt_ne
         n = k * n + c[0] * db[0] + c[1] * db[1]
         self._ba_tilt_ne = (n, k * e + c[3] * db[0] + c[4] * db[1])
+
+    def _watch_corrections(self, t_e: float, e_n: float, e_e: float, interval_s: float) -> None:
+        """The tilt the loop's control turns the platform by over the coming interval (eq.
+        3: w_p = (-e_E, e_N) / (tau g)) into :class:`TiltCorrections`; beyond what the noise
+        and the stated bias and tilt sigmas explain, the biases changed. Only while the
+        learning gates are open: a fix not good enough to learn biases from is no evidence
+        that they changed (gnss-outage seed 3, single point: 1.0 deg of corrections in 5 s
+        from its 8 cm/s velocities)."""
+        obs = self._observer
+        assert obs is not None
+        if not obs.learn:
+            self._corrections.clear()
+            return
+        k = interval_s / (self.cfg.tau_s * GRAVITY_MPS2)
+        corrections = self._corrections
+        sigma_tilt = math.sqrt(self._model_tilt_var(0.0))
+        corrections.add(t_e, -e_e * k, e_n * k, sigma_tilt)
+        change = corrections.check(self._gyro_arw, self._sigma_bg_rps(), sigma_tilt)
+        if change is not None:
+            self._bias_changed(t_e, change)
+
+    def _bias_changed(self, t_e: float, change: BiasChange) -> None:
+        """The x/y biases changed beyond their in-run model (:mod:`gateway.estimation.
+        bias_change`): their sigmas re-open, the accelerometer's to the turn-on spread or
+        the tilt taken (as a specific force) if more, the gyro's to the window's rate, so
+        what goes out states it and learning takes the new biases."""
+        obs = self._observer
+        assert obs is not None
+        cfg = self.cfg
+        sigma_a = max(cfg.accel_bias_sigma0_mps2, GRAVITY_MPS2 * change.tilt_rad)
+        if change.again:
+            self._log.warning(t_e, bias_change_text(t_e, change, sigma_a, 0.0), "bias change")
+            return
+        sigma_g = max(self._sigma_bg_rps(), change.rate_rps)
+        flt = self._ba_filter
+        if flt is not None and flt.started:
+            flt.reopen(sigma_a, sigma_g, obs.c_bp9)
+        else:
+            ba = obs.ba_hat_mps2
+            self._ba_origin = (ba[0], ba[1], sigma_a, self._a_learn)
+        self._g_learn = min(
+            self._g_learn, seeded_exponent(cfg.gyro_bias_sigma0_dps * DEG_TO_RAD, sigma_g)
+        )
+        self.counters.bias_changes += 1
+        self._log.warning(t_e, bias_change_text(t_e, change, sigma_a, sigma_g), "bias change")
 
     def _bias_filter_noise(self) -> BiasFilterNoise:
         """The accel-bias filter's noise: the IMU's white noise as measured where it is more
@@ -1598,9 +1647,17 @@ class ObserverEngine:
         return math.hypot(self._sigma_bg_rps() * coasting_s, self._gyro_arw * math.sqrt(coasting_s))
 
     def _sigma_tilt_rad(self, coasting_s: float) -> float:
-        """Roll/pitch 1-sigma from the observer's physics (seed 000, eqs. 3, 8, 10).
+        """Roll/pitch 1-sigma: :meth:`_model_tilt_var`'s, and what the loop's recent tilt
+        corrections show beyond it (:meth:`TiltCorrections.excess_rad`: a bias change
+        building, before it is one)."""
+        var = self._model_tilt_var(coasting_s)
+        sigma = math.sqrt(var)
+        excess = self._corrections.excess_rad(self._gyro_arw, self._sigma_bg_rps(), sigma)
+        return math.sqrt(var + excess * excess) if excess else sigma
 
-        Sum of squares of:
+    def _model_tilt_var(self, coasting_s: float) -> float:
+        """Roll/pitch variance from the observer's physics (seed 000, eqs. 3, 8, 10): the
+        sum of the squares of:
         - gyro angular random walk through the tilt loop (first order, tau): ARW sqrt(tau / 2);
         - GNSS velocity noise: e is a velocity *difference* over T, so its integral telescopes
           and the tilt sees one velocity error, not a random walk: sigma_v / (g tau), with
@@ -1624,7 +1681,7 @@ class ObserverEngine:
         obs = self._observer
         c = obs.c_bp9 if obs is not None else (0.0,) * 9
         sin2_tilt = c[2] * c[2] + c[5] * c[5]  # body z's horizontal part, squared
-        return math.sqrt(
+        return (
             self._arw_tilt_var
             + (sigma_v / (g * tau)) ** 2
             + (sigma_bg * tau) ** 2
