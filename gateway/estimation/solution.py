@@ -131,6 +131,7 @@ class ImuTiming:
     gaps: int = 0  # steps longer than MAX_IMU_STEP_S
     degraded_until_s: float = -math.inf
     recent: deque[ImuSample] = field(default_factory=lambda: deque(maxlen=GAP_SPREAD_SAMPLES))
+    lost_s: float = 0.0  # the span of lost samples the last step bridged (0: none lost)
 
     def step(self, sample: ImuSample) -> float:
         """Seconds ``sample`` closes: the time since the previous sample, so the samples lost
@@ -144,17 +145,15 @@ class ImuTiming:
         dt = sample.t - self.t_s
         if dt > 0.0:
             self.t_s = sample.t
+        self.lost_s = dt - sample.dt if dt > BRIDGED_STEP * sample.dt else 0.0
         if dt > MAX_IMU_STEP_S:
             self.gaps += 1
             self.degraded_until_s = sample.t + IMU_GAP_DEGRADED_S
         return dt
 
-    def bridged(self, sample: ImuSample, dt: float) -> GapSigma | None:
-        """What the step ``dt`` that ``sample`` closes may have missed, if it bridged lost
-        samples (None if it lost none: a step within :data:`BRIDGED_STEP` periods)."""
-        if dt <= BRIDGED_STEP * sample.dt:
-            return None
-        return bridged_sigma(self.recent, dt - sample.dt)
+    def bridged(self) -> GapSigma:
+        """What the last step may have missed over the :attr:`lost_s` it bridged."""
+        return bridged_sigma(self.recent, self.lost_s)
 
     def degraded(self) -> bool:
         """A gap in the IMU stream ended less than IMU_GAP_DEGRADED_S ago."""

@@ -105,7 +105,6 @@ from gateway.estimation.lever_arm import (
     lever_arm_velocity_ned,
 )
 from gateway.estimation.solution import (
-    BRIDGED_STEP,
     MAX_IMU_STEP_S,
     Convergence,
     LearnedState,
@@ -264,8 +263,8 @@ class EkfEngine:
                 self._hint.turn(w[2], dt)
             return
         ins.propagate(w, f, dt)
-        if dt > BRIDGED_STEP * sample.dt:
-            self._bridge(sample, dt)
+        if self._imu.timing.lost_s:
+            self._bridge()
         assert self._hist is not None
         self._hist.append((t, *ins.p_ned_m, *ins.v_ned_mps, *ins.c_bn9, *ins.w_b_rps))
         if self._p is not None and ins.sum_dt_s >= self._step_s:
@@ -277,8 +276,8 @@ class EkfEngine:
             for t_e, fix in self._held.due(t):
                 self._fuse_epoch(fix, t_e)
 
-    def _bridge(self, sample: ImuSample, dt: float) -> None:
-        """``sample`` closes a step of ``dt`` that bridges lost samples (:class:`ImuTiming`):
+    def _bridge(self) -> None:
+        """The last sample closed a step that bridges lost samples (:class:`ImuTiming`):
         the attitude and velocity it held over them are uncertain by what
         :func:`bridged_sigma` says, body axes, which P takes in NED (covariance predicted to
         now first); before the filter runs, the levelled tilt's sigma takes it until the
@@ -286,8 +285,7 @@ class EkfEngine:
         tilt 3 deg off with 0.6 stated; levelled, not yet filtering, 0.9 deg off with 0.05
         stated."""
         assert self._ins is not None
-        gap = self._imu.timing.bridged(sample, dt)
-        assert gap is not None
+        gap = self._imu.timing.bridged()
         if self._p is None:
             r = gap.rotation_rad
             self._sigma_level_rad = math.hypot(self._sigma_level_rad, max(r[0], r[1]))
@@ -748,11 +746,11 @@ class EkfEngine:
         :meth:`_set_from_fix`). Without the position term the next fix "observed" the tilt
         and took P's tilt back to 0.1 deg while roll stayed 1.4 deg off. The unobserved-bias
         share of the stated tilt (:meth:`_unobserved_bias_var`) comes back with it."""
-        p, ins = self._p, self._ins
-        assert p is not None and ins is not None
         if change.again:
             self._log.warning(t_e, bias_change_text(t_e, change, 0.0, 0.0), "bias change")
             return
+        p, ins = self._p, self._ins
+        assert p is not None and ins is not None
         c_bn = ins.c_bn
         j = np.zeros((N_STATES, 2))  # the error per unit x/y accelerometer bias change
         j[BA.start : BA.start + 2] = np.eye(2)

@@ -73,7 +73,6 @@ from gateway.estimation.observer.position_channel import PositionChannel
 from gateway.estimation.observer.rest_window import RestWindow
 from gateway.estimation.observer.tereshkov import TereshkovObserver
 from gateway.estimation.solution import (
-    BRIDGED_STEP,
     MAX_IMU_STEP_S,
     LearnedState,
     Mode,
@@ -286,7 +285,7 @@ class ObserverEngine:
             return
         if self._control_until_s is not None and t > self._control_until_s:
             self._end_control()
-        if dt > BRIDGED_STEP * sample.dt:
+        if self._imu.timing.lost_s:
             self._bridge(sample, dt)
         fpn, fpe, fpd = obs.propagate(w, f, dt)
         c = obs.c_bp9
@@ -323,8 +322,8 @@ class ObserverEngine:
         integral across it is no base for the next one (a held sample's vibration over 0.5 s
         is 0.2 m/s of velocity: a glitch, then applied clipped once it persisted, and the
         tilt went 0.7 deg off), and the heading's bias interval: its drift is no bias's."""
-        gap = self._imu.timing.bridged(sample, dt)
-        assert gap is not None and self._observer is not None
+        gap = self._imu.timing.bridged()
+        assert self._observer is not None
         r = gap.rotation_rad
         sigma_tilt = max(r[0], r[1])
         self._sigma_level_rad = math.hypot(self._sigma_level_rad, sigma_tilt)
@@ -1153,13 +1152,13 @@ class ObserverEngine:
         bias_change`): their sigmas re-open, the accelerometer's to the turn-on spread or
         the tilt taken (as a specific force) if more, the gyro's to the window's rate, so
         what goes out states it and learning takes the new biases."""
+        if change.again:
+            self._log.warning(t_e, bias_change_text(t_e, change, 0.0, 0.0), "bias change")
+            return
         obs = self._observer
         assert obs is not None
         cfg = self.cfg
         sigma_a = max(cfg.accel_bias_sigma0_mps2, GRAVITY_MPS2 * change.tilt_rad)
-        if change.again:
-            self._log.warning(t_e, bias_change_text(t_e, change, sigma_a, 0.0), "bias change")
-            return
         sigma_g = max(self._sigma_bg_rps(), change.rate_rps)
         flt = self._ba_filter
         if flt is not None and flt.started:
