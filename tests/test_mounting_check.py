@@ -42,11 +42,16 @@ def drive(
     slip_deg: float = 0.0,
     along_deg: float = 1.0,
     cross_deg: float = 5.0,
+    cross_end_deg: float | None = None,
+    settling_deg: float = 0.0,
     line_m: float = 600.0,
     passes: int = 4,
     seed: int = 1,
+    sigma_tilt_deg: float = SIGMA_TILT_DEG,
 ) -> None:
-    """``passes`` of the line (north, south, ...), a second's stop between them."""
+    """``passes`` of the line (north, south, ...), a second's stop between them. The cross
+    slope goes from ``cross_deg`` to ``cross_end_deg`` along the line (default: the same);
+    the engine's pitch starts ``settling_deg`` off and settles to none over the drive."""
     rng = np.random.default_rng(seed)
     speed, dt = 3.0, 0.1
     t = 0.0
@@ -59,11 +64,17 @@ def drive(
             # the body on the plane h = n tan(along) + e tan(cross), e = 0: going north the
             # right side is east, uphill (roll negative); going south the other way
             body_pitch = math.radians(along_deg if north else -along_deg)
-            body_roll = math.radians(-cross_deg if north else cross_deg)
+            cross = (
+                cross_deg + (cross_end_deg - cross_deg) * n / line_m
+                if cross_end_deg is not None
+                else cross_deg
+            )
+            body_roll = math.radians(-cross if north else cross)
             psi = math.radians(yaw_deg)
             slip = math.radians(slip_deg if north else -slip_deg)  # downhill: east, west
             pitch = body_pitch - body_roll * math.sin(psi) + math.radians(pitch_deg)
             pitch += body_roll * math.sin(slip)  # the track's slope leaves out this much
+            pitch += math.radians(settling_deg) * (1.0 - (k * steps + i) / (passes * steps))
             roll = body_roll + body_pitch * math.sin(psi) + math.radians(roll_deg)
             noise = rng.normal(0.0, math.radians(0.03), 2)
             height = n * math.tan(math.radians(along_deg)) + rng.normal(0.0, 0.01)
@@ -85,7 +96,7 @@ def drive(
                 yaw_rad=0.0 if north else math.pi,
                 lat_deg=fix.lat_deg,
                 lon_deg=fix.lon_deg,
-                sigma_tilt_rad=math.radians(SIGMA_TILT_DEG),
+                sigma_tilt_rad=math.radians(sigma_tilt_deg),
             )
             check.epoch(fix, sol)
 
@@ -136,6 +147,24 @@ def test_a_chassis_that_crabs_down_a_side_slope_is_not_a_mounting_yaw() -> None:
     not the body's pitch (pitch off by roll x sin(slip)), but the roll and the slip turn
     over together with the way driven: an offset of 0.17 deg, not a coupling."""
     assert not checked(slip_deg=2.0).off
+
+
+def test_a_settling_pitch_on_one_swath_is_not_a_mounting_yaw() -> None:
+    """The first 300 m of a drive on one swath, the roll 3.6-4.0 deg as the side slope
+    steepens, the engine's pitch 0.15 deg off settling to none (within the 0.09 deg it
+    states), as an engine's does while it learns its biases (latency-150ms seed 41,
+    observer). Against the roll, the segments' pitch lines up along a slope of 0.37 that
+    their scatter about it does not show (the check said "yaw -19 +/- 4.6 deg" and held
+    DEGRADED to the end of the run). Each segment's error is taken as no less than the
+    engine's stated tilt: with 0.4 deg of roll spread that is no coupling to judge by; with
+    the roll of both ways of the line, the same settling is none either."""
+    one_swath = {"cross_deg": 3.6, "cross_end_deg": 4.0, "settling_deg": -0.15}
+    check = checked(line_m=300.0, passes=1, sigma_tilt_deg=0.09, **one_swath)
+    fit = check.tilt.roll_coupling()
+    assert fit is not None and fit.segments >= MIN_BLOCKS  # judged, not waiting
+    assert abs(fit.coupling) > 0.3  # the slope is there ...
+    assert not check.off  # ... and not taken for a yaw
+    assert not checked(settling_deg=-0.15, sigma_tilt_deg=0.09).off
 
 
 def test_too_little_driving_is_not_judged() -> None:

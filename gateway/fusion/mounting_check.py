@@ -63,11 +63,13 @@ LEARNT_TILT_SIGMA_DEG = 0.15
 
 @dataclass(frozen=True, slots=True)
 class TiltOff:
-    """One axis's mounting error as the drive shows it: the angle and its 1-sigma (deg)."""
+    """One axis's mounting error as the drive shows it: the angle and its 1-sigma (deg), and
+    how near the bound it is."""
 
     axis: str
     angle_deg: float
     sigma_deg: float
+    ratio: float  # the error over the bound it is judged by: off beyond 1
 
     def text(self) -> str:
         """E.g. ``pitch 2.95 +/- 0.09 deg``."""
@@ -98,16 +100,7 @@ class MountingCheck:
         if self._next_t is not None and fix.t < self._next_t:
             return
         self._next_t = fix.t + CHECK_INTERVAL_S
-        tilt = self.tilt
-        found = tuple(
-            off
-            for off in (
-                _off("roll", tilt.roll()),
-                _off("pitch", tilt.pitch()),
-                _yaw_off(tilt.roll_coupling(), self.mounting_sigma_deg),
-            )
-            if off is not None
-        )
+        found = tuple(off for off in self.judged() if off.ratio > 1.0)
         if found and not self.found:
             log.warning(
                 "t=%.1f: the IMU mounting in effect is off the vehicle's axes (%s): the roll "
@@ -119,25 +112,34 @@ class MountingCheck:
         if found:
             self.found = found
 
+    def judged(self) -> tuple[TiltOff, ...]:
+        """The axes the drive so far can judge, each with its error against its bound."""
+        tilt = self.tilt
+        judged = (
+            _off("roll", tilt.roll()),
+            _off("pitch", tilt.pitch()),
+            _yaw_off(tilt.roll_coupling(), self.mounting_sigma_deg),
+        )
+        return tuple(off for off in judged if off is not None)
+
 
 def _off(axis: str, est: TiltEstimate) -> TiltOff | None:
-    """The axis's error, when the drive shows it beyond chance; else None."""
+    """The axis's error against ``SIGMAS`` of its sigma and the chassis's tolerance; None
+    with too little driving to judge."""
     if est.angle_rad is None or est.blocks < MIN_BLOCKS or not math.isfinite(est.sigma_rad):
         return None
     angle, sigma = est.angle_rad * RAD_TO_DEG, est.sigma_rad * RAD_TO_DEG
-    if abs(angle) <= SIGMAS * sigma + OFFSET_TOLERANCE_DEG:
-        return None
-    return TiltOff(axis, angle, sigma)
+    return TiltOff(axis, angle, sigma, abs(angle) / (SIGMAS * sigma + OFFSET_TOLERANCE_DEG))
 
 
 def _yaw_off(fit: RollCoupling | None, stated_deg: float) -> TiltOff | None:
-    """The mounting yaw, when the pitch it carries at the roll driven is beyond chance and
-    beyond the mounting's stated 1-sigma ``stated_deg``."""
-    if fit is None or fit.segments < MIN_BLOCKS:
+    """The mounting yaw: the pitch it carries at the roll driven against ``SIGMAS`` of its
+    sigma and of the mounting's stated 1-sigma ``stated_deg``, plus the margin; None with
+    too little driving to judge."""
+    if fit is None or fit.segments < MIN_BLOCKS or not math.isfinite(fit.sigma_coupling):
         return None
     error_deg = abs(fit.coupling) * fit.roll_rms_rad * RAD_TO_DEG
     sigma_deg = fit.sigma_coupling * fit.roll_rms_rad * RAD_TO_DEG
-    if error_deg <= SIGMAS * (sigma_deg + stated_deg) + COUPLING_TOLERANCE_DEG:
-        return None
+    bound_deg = SIGMAS * (sigma_deg + stated_deg) + COUPLING_TOLERANCE_DEG
     yaw = math.asin(max(-1.0, min(1.0, -fit.coupling)))
-    return TiltOff("yaw", yaw * RAD_TO_DEG, fit.sigma_coupling * RAD_TO_DEG)
+    return TiltOff("yaw", yaw * RAD_TO_DEG, fit.sigma_coupling * RAD_TO_DEG, error_deg / bound_deg)
