@@ -699,9 +699,10 @@ class EkfEngine:
         assert ins is not None and hist is not None and tun is not None
         c_e = row[ROW_C].reshape(3, 3)
         rot = exp_so3((0.0, 0.0, target - math.atan2(c_e[1, 0], c_e[0, 0])))
-        ins.rotate(rot)
+        ins.rotate(rot)  # and the velocity integrated in the old azimuth, rows too
+        ins.v_ned_mps = [float(x) for x in rot @ np.array(ins.v_ned_mps)]
         self._hint = None
-        hist.shift(np.zeros(3), np.zeros(3), to_mat9(rot))
+        hist.turn(to_mat9(rot), ins.p_ned_m)
         row_aligned = hist.at(t_e)
         assert row_aligned is not None
         self._p = np.zeros((N_STATES, N_STATES))
@@ -943,7 +944,8 @@ class EkfEngine:
             self._fix_err_ned_m[:] = 0.0
 
     def _set_from_fix(self, fix: GnssFix, t_e: float, row: Array) -> None:
-        """INS position/velocity from the fix at ``t_e``, moved to now; P rows reset.
+        """INS position/velocity from the fix at ``t_e``, moved to now by the INS's motion
+        since; P rows reset.
 
         The new errors are the fix's, carried through the lever arm with the attitude and
         gyro bias of the moment: dp = -b - w + [C l]x phi, dv = -e_v + [C (w x l)]x phi -
@@ -972,13 +974,15 @@ class EkfEngine:
             fwd_n**2 + fwd_e**2
         )
         v_imu[2] = fwd_d * u + v_rot_imu[2]
+        # the INS's own motion since t_e carried on (as a fused epoch's correction is): with a
+        # constant velocity over the age, an epoch 4 s late in a pull-away set 1.5 m/s where
+        # the vehicle did 3, and the next epochs were rejected as glitches
         age_s = self._t_s - t_e
-        p_now = p_imu + v_imu * age_s
-        dp = p_now - np.array(ins.p_ned_m)
-        dv = v_imu - np.array(ins.v_ned_mps)
-        ins.p_ned_m = [float(x) for x in p_now]
-        ins.v_ned_mps = [float(x) for x in v_imu]
-        hist.shift(dp, dv, IDENTITY9)
+        dp = p_imu - row[ROW_P]
+        dv = v_imu - row[ROW_V]
+        ins.p_ned_m = [float(x) for x in np.array(ins.p_ned_m) + dp + dv * age_s]
+        ins.v_ned_mps = [float(x) for x in np.array(ins.v_ned_mps) + dv]
+        hist.shift(dp, dv, IDENTITY9, t_e)
         for s in (POS, VEL, FIX):
             p[s, :] = 0.0
             p[:, s] = 0.0

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import math
 from bisect import bisect_left, bisect_right
+from collections.abc import Sequence
 from typing import NamedTuple
 
 import numpy as np
@@ -139,6 +140,25 @@ class InsHistory:
             sz += row[x + 2]
         n = hi - lo
         return np.array((sx / n, sy / n, sz / n))
+
+    def turn(self, rot: Mat9, p_ref: Sequence[float]) -> None:
+        """Turn every row about the vertical by ``rot`` as the heading's alignment turns the
+        INS: C <- rot C, and the motion integrated in the old azimuth with it: v <- rot v,
+        the position about ``p_ref`` (the INS's now). (A correction turns the attitude
+        alone: the velocity was integrated with the attitude it had.) Once an engine's
+        life, so the rows are rewritten at once, their shifts so far applied first."""
+        rows = self._corrected(0, len(self._rows)) if self._rows else []
+        r = rot
+        for row in rows:
+            row[ROW_C] = dcm_mul(r, row[ROW_C])
+            x, y = row[4], row[5]
+            row[4], row[5] = r[0] * x + r[1] * y, r[3] * x + r[4] * y
+            x, y = row[1] - p_ref[0], row[2] - p_ref[1]
+            row[1], row[2] = p_ref[0] + r[0] * x + r[1] * y, p_ref[1] + r[3] * x + r[4] * y
+        self._rows = [tuple(row) for row in rows]
+        self._first_shift += len(self._shifts)
+        self._shifts = []
+        self._marks = [self._first_shift] * len(self._rows)
 
     def shift(self, dp: Array, dv: Array, rot: Mat9, t_e: float = math.inf) -> None:
         """Correct every row by :class:`Shift` (dp, dv, rot, t_e) (when it is read)."""
