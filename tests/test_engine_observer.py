@@ -2,17 +2,22 @@
 
 import math
 from dataclasses import replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pytest
 
 from drivers.samples import FixQuality, GnssFix
+from gateway.config.gateway_config import load_config
 from gateway.estimation.epoch_clock import EpochTime
 from gateway.estimation.geodesy import lla_to_ned
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Mode, Solution
+from gateway.offline.log_replay import replay
+from sim_bus.scenarios import generate, scenario_from_toml
+from sim_bus.truth import Truth
 from tests.kinematics import (
     ORIGIN_LLA,
     Motion,
@@ -25,6 +30,7 @@ from tests.kinematics import (
     state_at,
     with_velocity_offset,
 )
+from tests.n2k_check import decode_log, position_errors_m
 
 START = [Segment(3.0), Segment(3.0, accel_mps2=1.0)]
 U_TURN = math.pi / 0.3
@@ -175,6 +181,26 @@ def test_reference_point_is_smooth_at_50_hz_and_terrain_compensated() -> None:
         if s.vel_ned_mps is not None
     ]
     assert max(v_err) < 0.02
+
+
+def test_the_imu_lever_arm_turning_between_1_hz_fixes_is_not_in_the_reference_point(
+    tmp_path: Path,
+) -> None:
+    """A 1 Hz receiver on the simulated `short` run (the IMU 0.5 m ahead of the reference
+    point and 1 m up; headland turns at up to 19 deg/s, entered and left smoothly: the
+    kinematic motions here step their yaw rate, which the IMU's tangential acceleration
+    never shows). f_p is the IMU point's, whose velocity a turn moves by C (w x l_imu)
+    against the reference point's within an epoch interval; the state integrated it as
+    the reference point's between fixes: 18 cm off at worst, 4.0 cm RMS (robustness
+    `gnss-1hz` seed 41: 24 cm). Each epoch and the output now take it out: 8 cm, 2.4 cm.
+    The positions as sent, decoded by the independent `nmea2000` package."""
+    scenario = scenario_from_toml({"base": "short", "name": "short-1hz", "gnss": {"rate_hz": 1.0}})
+    run = generate(scenario, tmp_path, seed=1)
+    out = tmp_path / "out.log"
+    replay(run.imu_log, run.gnss_log, out, load_config(run.config_file))
+    err = position_errors_m(decode_log(out), Truth.load(run.truth_file), after_s=40.0)
+    assert len(err) > 3000
+    assert err.max() < 0.11 and math.sqrt(float(np.mean(err**2))) < 0.03
 
 
 def test_velocity_glitch_of_5_s_leaves_no_lasting_bias() -> None:

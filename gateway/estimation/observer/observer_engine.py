@@ -61,6 +61,7 @@ from gateway.estimation.lever_arm import (
     along_body_x,
     antenna_velocity_along_body_x,
     heading_from_antenna_course,
+    lever_arm_position_ned,
     lever_arm_velocity_ned,
     reference_from_antenna,
     velocity_at,
@@ -215,6 +216,9 @@ class ObserverEngine:
         # IMU-point minus reference-point velocity, C (w_b x l_imu), at the last velocity
         # reset: the velocity state integrates the IMU point's f_p since then
         self._lever_v_ned_mps = (0.0, 0.0, 0.0)
+        # since the last epoch (t, (C l_imu) N/E then, that lever velocity N/E): the
+        # horizontal position the lever arm's rotation has put into the state since
+        self._lever_anchor: tuple[float, float, float, float, float] | None = None
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
         self._t_vel_rx_s: float | None = None  # receive time of the last usable velocity
@@ -337,8 +341,11 @@ class ObserverEngine:
     def _propagate_navigation(self, fpn: float, fpe: float, fpd: float, dt: float) -> None:
         """Reference-point velocity and position from a = f_p + g; f_p integral for eq. (3).
 
-        The IMU lever arm's centripetal terms are not removed here: GNSS resets the velocity
-        every epoch, and over 0.1 s they are below a few mm (the IMU arm is mostly vertical).
+        f_p is the IMU point's: since the last velocity reset the state has integrated the
+        IMU point's motion less its lever-arm velocity then, and the position what the lever
+        arm's rotation moved the IMU point since (:meth:`_lever_drift_ne`), which each
+        epoch and the output take out (horizontally; the height loop takes the vertical).
+        Per epoch, not per sample: it telescopes, C l_imu now against then.
         """
         sf = self._sf
         sf[0] += fpn * dt
@@ -352,6 +359,50 @@ class ObserverEngine:
         p[0] += v[0] * dt
         p[1] += v[1] * dt
         p[2] += v[2] * dt
+
+    def _lever_drift_ne(self, c: Mat9, t: float) -> tuple[float, float]:
+        """The horizontal position the IMU lever arm's rotation has put into the state since
+        the last epoch, m: the integral of C (w x l_imu) - its value then, which is
+        C l_imu now - C l_imu then - (C (w x l_imu) then) (t - then). At 1 Hz a headland
+        turn's 19 deg/s moved the IMU point (0.5 m ahead) 0.17 m/s against the reference
+        point within an epoch interval: the reference point went out up to 0.24 m off with
+        RTK fixes (robustness `gnss-1hz` seed 41). Zero while coasting: the coast integrates
+        the IMU point and constrains it as such."""
+        a = self._lever_anchor
+        if a is None:
+            return (0.0, 0.0)
+        t_a, cln_a, cle_a, lvn_a, lve_a = a
+        cln, cle, _ = lever_arm_position_ned(c, self._l_imu_f)
+        return (cln - cln_a - lvn_a * (t - t_a), cle - cle_a - lve_a * (t - t_a))
+
+    def _lever_velocity_change_ne(self, c: Mat9, w_b: Float3) -> tuple[float, float]:
+        """The IMU lever arm's horizontal velocity C (w x l_imu) now less its value at the
+        last epoch: what the state's velocity has of it (0 while coasting)."""
+        a = self._lever_anchor
+        if a is None:
+            return (0.0, 0.0)
+        vn, ve, _ = lever_arm_velocity_ned(c, w_b, self._l_imu_f)
+        return (vn - a[3], ve - a[4])
+
+    def _platform(self) -> Mat9:
+        """The platform's attitude now, C_b^n (row major)."""
+        assert self._observer is not None
+        return self._observer.c_bp9
+
+    def _settle_lever(self, c: Mat9, velocity_reset: bool) -> None:
+        """Take :meth:`_lever_drift_ne` out of the position (at an epoch, or the coast's
+        start) and start anew from now: with the lever velocity of the epoch's fix after a
+        velocity reset, else with the old one (the state goes on integrating from it)."""
+        t = self._t_s
+        a = self._lever_anchor
+        if t is None or (a is None and not velocity_reset):
+            return
+        dn, de = self._lever_drift_ne(c, t)
+        self._p_ned_m[0] -= dn
+        self._p_ned_m[1] -= de
+        lever = self._lever_v_ned_mps if velocity_reset or a is None else (a[3], a[4], 0.0)
+        cln, cle, _ = lever_arm_position_ned(c, self._l_imu_f)
+        self._lever_anchor = (t, cln, cle, lever[0], lever[1])
 
     def _coast_on_the_ground(
         self,
@@ -1224,6 +1275,8 @@ class ObserverEngine:
         obs.set_heading_rate(0.0)
         obs.learn = False
         self._w_pz_rps = 0.0
+        self._settle_lever(obs.c_bp9, velocity_reset=False)
+        self._lever_anchor = None  # the coast integrates the IMU point as such
         self._coasting = True
         self._held_forward = self._stop_ne_m = None
         self._end_rest()
@@ -1372,7 +1425,10 @@ class ObserverEngine:
             channel.reset()
             self._nav_valid = True
             self._t_pos_epoch_s = self._t_position_s = t_e
+            self._lever_anchor = None
+            self._settle_lever(self._platform(), velocity_reset=True)
             return
+        self._settle_lever(self._platform(), velocity_reset=False)
         age = self._t_s - row[_T]
         v_e = [
             v[0] - (sf[0] - row[_SF_N]),
@@ -1403,6 +1459,8 @@ class ObserverEngine:
         for i in range(3):
             p[i] += corr[i] + dv[i] * age
             v[i] += dv[i]
+        if v_ref_ne is not None:
+            self._settle_lever(self._platform(), velocity_reset=True)
         if verdict != "reject":
             self._t_pos_epoch_s = t_e
         learn = verdict == "use" and fix.quality == FixQuality.RTK_FIXED and interval_s > 0.0
@@ -1530,8 +1588,11 @@ class ObserverEngine:
         send, within = self._dead_reckoning_output(coasting_s)
         # the reference point is antenna - C l_ant: not known before the heading is
         if self._nav_valid and self._heading_aligned and self._frame is not None and send:
-            lat, lon, alt = self._frame.to_lla(*self._p_ned_m)
-            vel = (self._v_ned_mps[0], self._v_ned_mps[1], self._v_ned_mps[2])
+            p, v = self._p_ned_m, self._v_ned_mps
+            dn, de = self._lever_drift_ne(c9, self._t_s or 0.0)
+            lat, lon, alt = self._frame.to_lla(p[0] - dn, p[1] - de, p[2])
+            dvn, dve = self._lever_velocity_change_ne(c9, obs.w_b_rps)
+            vel = (v[0] - dvn, v[1] - dve, v[2])
         k = self.cfg.converged_time_constants
         convergence = convergence_of(
             self._g_learn >= k,
