@@ -148,13 +148,14 @@ class InsHistory:
         alone: the velocity was integrated with the attitude it had.) Once an engine's
         life, so the rows are rewritten at once, their shifts so far applied first."""
         rows = self._corrected(0, len(self._rows)) if self._rows else []
-        r = rot
+        a, b, c, d = rot[0], rot[1], rot[3], rot[4]  # the horizontal 2 x 2 of rot
+        n, v = ROW_P.start, ROW_V.start
         for row in rows:
-            row[ROW_C] = dcm_mul(r, row[ROW_C])
-            x, y = row[4], row[5]
-            row[4], row[5] = r[0] * x + r[1] * y, r[3] * x + r[4] * y
-            x, y = row[1] - p_ref[0], row[2] - p_ref[1]
-            row[1], row[2] = p_ref[0] + r[0] * x + r[1] * y, p_ref[1] + r[3] * x + r[4] * y
+            row[ROW_C] = dcm_mul(rot, row[ROW_C])
+            x, y = row[v], row[v + 1]
+            row[v], row[v + 1] = a * x + b * y, c * x + d * y
+            x, y = row[n] - p_ref[0], row[n + 1] - p_ref[1]
+            row[n], row[n + 1] = p_ref[0] + a * x + b * y, p_ref[1] + c * x + d * y
         self._rows = [tuple(row) for row in rows]
         self._first_shift += len(self._shifts)
         self._shifts = []
