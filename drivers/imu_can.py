@@ -78,6 +78,7 @@ from drivers.frame_reader import FrameReader
 from drivers.log_limit import BadInput
 from drivers.logs.candump import CandumpReader, FrameFields, read_candump
 from drivers.samples import Float3, ImuAux, ImuCounters, ImuSample
+from drivers.stuck_output import STUCK_SAMPLES, StuckAxes
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 
 log = logging.getLogger(__name__)
@@ -161,6 +162,7 @@ class ImuCanConfig:
     wrap_check_s: float = 0.25  # arrivals late by over half a SEQ wrap this long: missed wraps
     pair_timeout_s: float = 0.05  # a half (gyro or accel) waits this long for its partner
     warn_interval_s: float = 10.0  # at most one warning per kind per this much frame time
+    stuck_samples: int = STUCK_SAMPLES  # an axis unchanged this many samples: stuck (0: off)
     on_error: ErrorPolicy = ErrorPolicy.LOG  # malformed frames: raise, log (and skip), ignore
 
 
@@ -175,6 +177,7 @@ class WarningKind(Enum):
     ALARM = "IMU alarm"
     SATURATED = "saturated axis"
     NO_NEW_DATA = "stale data"
+    STUCK = "stuck output"
     REANCHOR = "time re-anchored"
     SEQ = "SEQ discontinuity"
 
@@ -259,16 +262,16 @@ def _half_unpacker(frame: ImuFrame) -> tuple[_Unpacker, int]:
     return decoder.compile(list(outputs.values())), (1 << reserved.length) - 1
 
 
-_SampleMaker = Callable[[float, float, Float3, Float3, int, bool, bool], ImuSample]
+_SampleMaker = Callable[[float, float, Float3, Float3, int, bool, bool, bool], ImuSample]
 
 
 def _sample_maker() -> _SampleMaker:
-    """``ImuSample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated)`` at half the cost: a frozen
-    dataclass's ``__init__`` sets each field through ``object.__setattr__`` (~0.9 us a sample,
-    as much as decoding both frames); this sets the same slots directly, so the sample is the
-    same. If ImuSample ever needs more than its slots set (other fields, a ``__post_init__``,
+    """``ImuSample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck)`` at half the cost: a
+    frozen dataclass's ``__init__`` sets each field through ``object.__setattr__`` (~0.9 us a
+    sample, as much as decoding both frames); this sets the same slots directly, so the sample
+    is the same. If ImuSample ever needs more than its slots set (other fields, a ``__post_init__``,
     no slots), the class itself is called."""
-    names = ("t", "dt", "w_ib_b", "f_ib_b", "seq", "alarm", "saturated")
+    names = ("t", "dt", "w_ib_b", "f_ib_b", "seq", "alarm", "saturated", "stuck")
     fields = dataclasses.fields(ImuSample)
     slots = [vars(ImuSample).get(n) for n in names]
     if (
@@ -279,20 +282,41 @@ def _sample_maker() -> _SampleMaker:
     ):
 
         def construct(
-            t: float, dt: float, w: Float3, f: Float3, seq: int, alarm: bool, saturated: bool
+            t: float,
+            dt: float,
+            w: Float3,
+            f: Float3,
+            seq: int,
+            alarm: bool,
+            saturated: bool,
+            stuck: bool,
         ) -> ImuSample:
             return ImuSample(
-                t=t, dt=dt, w_ib_b=w, f_ib_b=f, seq=seq, alarm=alarm, saturated=saturated
+                t=t,
+                dt=dt,
+                w_ib_b=w,
+                f_ib_b=f,
+                seq=seq,
+                alarm=alarm,
+                saturated=saturated,
+                stuck=stuck,
             )
 
         return construct
     new, cls = object.__new__, ImuSample
-    set_t, set_dt, set_w, set_f, set_seq, set_alarm, set_saturated = (
+    set_t, set_dt, set_w, set_f, set_seq, set_alarm, set_saturated, set_stuck = (
         slot.__set__ for slot in slots if isinstance(slot, types.MemberDescriptorType)
     )
 
     def make(
-        t: float, dt: float, w: Float3, f: Float3, seq: int, alarm: bool, saturated: bool
+        t: float,
+        dt: float,
+        w: Float3,
+        f: Float3,
+        seq: int,
+        alarm: bool,
+        saturated: bool,
+        stuck: bool,
     ) -> ImuSample:
         sample = new(cls)
         set_t(sample, t)
@@ -302,6 +326,7 @@ def _sample_maker() -> _SampleMaker:
         set_seq(sample, seq)
         set_alarm(sample, alarm)
         set_saturated(sample, saturated)
+        set_stuck(sample, stuck)
         return sample
 
     return make
@@ -323,6 +348,8 @@ class ImuDecoder:
         # and, when zero, +0.0 (the unpacker's tables are checked for that).
         self._mounted = not np.array_equal(self.c_b_imu, np.eye(3))
         self._latency = self.config.bridge_latency_s
+        n_stuck = self.config.stuck_samples
+        self._stuck = StuckAxes(n_stuck) if n_stuck > 0 else None
         db = dbc.load(dbc.IMU_DBC)
         aux = db.get_message_by_name(ImuFrame.AUX.value)
         self._aux_decoder = LittleEndianDecoder(aux)
@@ -513,11 +540,25 @@ class ImuDecoder:
             )
         w_ib_b: Float3 = (g[_X], g[_Y], g[_Z])
         f_ib_b: Float3 = (f[_X], f[_Y], f[_Z])
+        stuck = self._stuck is not None and self._stuck(w_ib_b, f_ib_b)
+        if stuck:
+            self._on_stuck(seq, a)
         if self._mounted:
             w_ib_b, f_ib_b = self._mount(w_ib_b), self._mount(f_ib_b)
         dt = self._dt
         t = self._offset + n * dt - self._latency
-        return _new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated)
+        return _new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck)
+
+    def _on_stuck(self, seq: int, a: float) -> None:
+        assert self._stuck is not None
+        self.counters.stuck += 1
+        self._warn(
+            WarningKind.STUCK,
+            a,
+            f"IMU {', '.join(self._stuck.stuck_axes())} output unchanged for "
+            f"{max(self._stuck.runs) + 1} samples up to SEQ {seq}: the sensor or its bridge "
+            "is not updating; expected its noise to change every axis from sample to sample",
+        )
 
     def _mount(self, v_imu: Float3) -> Float3:
         """C v_imu: the IMU's axes turned into the body's, by numpy's product as ever."""

@@ -47,13 +47,13 @@ class ImuIntervals:
         self._broken = False  # samples dropped unseen since the last cut
 
     def add(self, sample: ImuSample) -> None:
-        """One sample; flagged samples (alarm, saturation) spoil their interval."""
+        """One sample; flagged samples (alarm, saturated, stuck) spoil their interval."""
         if self._cut_s is not None and sample.t <= self._cut_s:
             return
         if len(self._pending) == MAX_PENDING:
             self._broken = True
         w, f = sample.w_ib_b, sample.f_ib_b
-        ok = not (sample.alarm or sample.saturated)
+        ok = not (sample.alarm or sample.saturated or sample.stuck)
         self._pending.append(
             (sample.t, float(w[0]), float(w[1]), float(w[2]),
              float(f[0]), float(f[1]), float(f[2]), ok)

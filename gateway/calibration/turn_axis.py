@@ -60,7 +60,8 @@ class TurnAxisFit:
         """One IMU sample; a gap or a flagged sample drops the window it falls in."""
         t = sample.t
         last, self._last_s = self._last_s, t
-        if sample.alarm or sample.saturated or last is None or t - last > MAX_IMU_STEP_S:
+        flagged = sample.alarm or sample.saturated or sample.stuck
+        if flagged or last is None or t - last > MAX_IMU_STEP_S:
             self._restart(None)
             return
         if t <= last:

@@ -15,6 +15,7 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
+from drivers.stuck_output import STUCK_SAMPLES
 from gateway.config.config_schema import (
     ConfigError,
     from_table,
@@ -118,6 +119,14 @@ class ImuSection:
         default=1.0,
         metadata=_doc(
             "invalid or saturated IMU samples this long: FAULT", **in_range(1e-3, 3600.0)
+        ),
+    )
+    stuck_samples: int = field(
+        default=STUCK_SAMPLES,
+        metadata=_doc(
+            "an axis's output unchanged this many samples running: stuck, FAULT"
+            " (0: off, for a source without noise)",
+            **in_range(0, 1_000_000),
         ),
     )
 

@@ -73,8 +73,8 @@ def seeded_exponent(sigma0: float, sigma: float) -> float:
 
 class ImuHealth:
     """The IMU stream judged sample by sample: the step to integrate over (:class:`ImuTiming`),
-    and runs of unusable samples (non-finite numbers or time, a saturated axis) that are a
-    FAULT once they last ``fault_s``. The EA alarm (some DIAG_STAT flag, SPEC 1: also the
+    and runs of unusable samples (non-finite numbers or time, a saturated or stuck axis) that
+    are a FAULT once they last ``fault_s``. The EA alarm (some DIAG_STAT flag, SPEC 1: also the
     user alarm thresholds) leaves the data usable: DEGRADED and bias learning frozen, not a
     FAULT."""
 
@@ -100,8 +100,9 @@ class ImuHealth:
             self._mark_bad(t)
             return None
         self.alarm = sample.alarm
-        self.upset |= sample.alarm or sample.saturated or dt > MAX_IMU_STEP_S
-        if sample.saturated:
+        unusable = sample.saturated or sample.stuck
+        self.upset |= sample.alarm or unusable or dt > MAX_IMU_STEP_S
+        if unusable:
             self._mark_bad(t)
         else:
             self.bad_since_s, self._bad_for_s = None, 0.0

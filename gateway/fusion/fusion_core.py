@@ -20,10 +20,12 @@ The IMU drives the outputs, so without it nothing would go out: when no sample h
 sends NAVGW_STATUS alone at its rate, saying FAULT with the IMU not ok and the samples missing
 in byte 6 (SPEC 4: an outage is reported, not silent). A gap of :data:`RESTART_GAP_S` or more
 restarts the engine: the motion over it is unknown, and a solution carried across it would be
-a guess. A saturated sample (an axis at the end of its register) is no measurement: it is not
-fed to the engine, NAVGW_STATUS says FAULT from that sample on, and when the IMU is back in
-range the engine restarts (the rotation while saturated is unknown: 2 s of full-scale gyro
-left the attitude 179 deg off, then above 1 deg for 35 s, while STATUS said navigating).
+a guess. A saturated sample (an axis at the end of its register) or a stuck one (an axis's word
+unchanged sample after sample, :mod:`drivers.stuck_output`) is no measurement: it is not fed
+to the engine, NAVGW_STATUS says FAULT from that sample on, and when the IMU measures again
+the engine restarts (the rotation meanwhile is unknown: 2 s of full-scale gyro left the
+attitude 179 deg off, then above 1 deg for 35 s, while STATUS said navigating; a 10 s freeze
+left roll 4 deg off).
 A restarted engine starts from what the one it replaces had learned of the IMU's biases
 (:meth:`LearningEstimator.learned_state`, with its sigmas): the IMU is the same.
 
@@ -118,8 +120,9 @@ class FusionStats:
     gnss_fixes: int = 0
     frames_out: int = 0
     imu_dropped: int = 0  # samples the live loop dropped before the engine (overload, stale)
-    engine_restarts: int = 0  # after a gap of RESTART_GAP_S in the IMU stream, or saturation
+    engine_restarts: int = 0  # after a gap of RESTART_GAP_S in the IMU stream, or unusable samples
     imu_saturated: int = 0  # samples withheld from the engine: an axis at its range's end
+    imu_stuck: int = 0  # samples withheld from the engine: an axis's word stuck
 
 
 class ImuLossCount(Protocol):
@@ -158,10 +161,10 @@ class FusionCore:
         self._imu_lost = imu_lost or ImuCounters()
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
         self._last_sample: ImuSample | None = None
-        self._saturated = False  # saturated samples since the last good one
+        self._unusable = False  # saturated or stuck samples since the last good one
         self._told_mode: Mode | None = None  # mode of the last NAVGW_STATUS sent
         self._loop = LoopStatus()  # the last loop status made (:meth:`loop_status`)
-        self._last_saturation_log = -math.inf
+        self._last_unusable_log = -math.inf
         self._warm_start = warm_start  # asked once, at the first IMU_AUX
         self._t_first_imu: float | None = None
         self.imu_temp_c: float | None = None  # the last IMU_AUX's temperature
@@ -296,13 +299,13 @@ class FusionCore:
         """Propagate with one sample, then send whatever is due at its time."""
         self.stats.imu_samples += 1
         t = sample.t
-        if sample.saturated:
-            return self._on_saturated(sample)
+        if sample.saturated or sample.stuck:
+            return self._on_unusable(sample)
         if self._warm_start is not None:
             self._wait_for_temperature(t)
         last = self._last_sample
         gap = last is not None and abs(t - last.t) >= RESTART_GAP_S
-        if gap or self._saturated:
+        if gap or self._unusable:
             self._restart_engine(last if gap else None, t)
         self._last_sample = sample
         self.engine.imu(sample)
@@ -331,22 +334,27 @@ class FusionCore:
         self.mounting.epoch(self._fix_to_check, sol)
         self._fix_to_check = None
 
-    def _on_saturated(self, sample: ImuSample) -> Iterator[can.Message]:
-        """A saturated sample: not fed to the engine; NAVGW_STATUS says FAULT."""
-        self.stats.imu_saturated += 1
-        if not self._saturated and sample.t - self._last_saturation_log >= 10.0:
+    def _on_unusable(self, sample: ImuSample) -> Iterator[can.Message]:
+        """A saturated or stuck sample: not fed to the engine; NAVGW_STATUS says FAULT."""
+        if sample.saturated:
+            self.stats.imu_saturated += 1
+        else:
+            self.stats.imu_stuck += 1
+        if not self._unusable and sample.t - self._last_unusable_log >= 10.0:
             log.warning(
-                "IMU saturated at t=%.3f (an axis at the end of its range): attitude "
-                "unknown, FAULT until the engine has re-aligned", sample.t,
+                "IMU %s at t=%.3f: attitude unknown, FAULT until the engine has re-aligned",
+                "saturated (an axis at the end of its range)" if sample.saturated
+                else "stuck (an axis's output unchanged sample after sample)",
+                sample.t,
             )  # fmt: skip
-            self._last_saturation_log = sample.t
-        self._saturated = True
+            self._last_unusable_log = sample.t
+        self._unusable = True
         return self._counted(chain(self._timers(sample.t), self._fault(sample.t)))
 
     def _restart_engine(self, last: ImuSample | None, t: float) -> None:
-        """A new engine after a gap since ``last`` (None: after saturation), seeded with
+        """A new engine after a gap since ``last`` (None: after unusable samples), seeded with
         what the old one had learned; without a factory the engine carries on."""
-        self._saturated = False
+        self._unusable = False
         if self._make_engine is None:
             return
         learned = self.engine.learned_state()
