@@ -73,12 +73,12 @@ from can.typechecking import CanFilter
 
 import dbc
 from dbc.fast_decode import AllOf, AnyOf, LittleEndianDecoder, Lookup, Output, Raw
+from drivers.axis_checks import ACCEL_JUMP_MPS2, GYRO_JUMP_RPS, STUCK_SAMPLES, AxisChecks
 from drivers.errors import ErrorPolicy
 from drivers.frame_reader import FrameReader
 from drivers.log_limit import BadInput
 from drivers.logs.candump import CandumpReader, FrameFields, read_candump
 from drivers.samples import Float3, ImuAux, ImuCounters, ImuSample
-from drivers.stuck_output import STUCK_SAMPLES, StuckAxes
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 
 log = logging.getLogger(__name__)
@@ -178,6 +178,7 @@ class WarningKind(Enum):
     SATURATED = "saturated axis"
     NO_NEW_DATA = "stale data"
     STUCK = "stuck output"
+    SPIKE = "spike"
     REANCHOR = "time re-anchored"
     SEQ = "SEQ discontinuity"
 
@@ -348,8 +349,7 @@ class ImuDecoder:
         # and, when zero, +0.0 (the unpacker's tables are checked for that).
         self._mounted = not np.array_equal(self.c_b_imu, np.eye(3))
         self._latency = self.config.bridge_latency_s
-        n_stuck = self.config.stuck_samples
-        self._stuck = StuckAxes(n_stuck) if n_stuck > 0 else None
+        self._checks = AxisChecks(self.config.stuck_samples)
         db = dbc.load(dbc.IMU_DBC)
         aux = db.get_message_by_name(ImuFrame.AUX.value)
         self._aux_decoder = LittleEndianDecoder(aux)
@@ -538,9 +538,13 @@ class ImuDecoder:
                 f"ND bit clear in SEQ {seq}: register read "
                 "before new data; expected ND set on every sample",
             )
-        w_ib_b: Float3 = (g[_X], g[_Y], g[_Z])
-        f_ib_b: Float3 = (f[_X], f[_Y], f[_Z])
-        stuck = self._stuck is not None and self._stuck(w_ib_b, f_ib_b)
+        w_imu: Float3 = (g[_X], g[_Y], g[_Z])
+        f_imu: Float3 = (f[_X], f[_Y], f[_Z])
+        checks = self._checks
+        stuck = checks.check(w_imu, f_imu)
+        w_ib_b, f_ib_b = checks.w, checks.f
+        if w_ib_b is not w_imu or f_ib_b is not f_imu:
+            self._on_jump(seq, a, w_imu, f_imu)
         if stuck:
             self._on_stuck(seq, a)
         if self._mounted:
@@ -550,14 +554,34 @@ class ImuDecoder:
         return _new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck)
 
     def _on_stuck(self, seq: int, a: float) -> None:
-        assert self._stuck is not None
+        checks = self._checks
         self.counters.stuck += 1
         self._warn(
             WarningKind.STUCK,
             a,
-            f"IMU {', '.join(self._stuck.stuck_axes())} output unchanged for "
-            f"{max(self._stuck.runs) + 1} samples up to SEQ {seq}: the sensor or its bridge "
+            f"IMU {', '.join(checks.stuck_axes())} output unchanged for "
+            f"{max(checks.runs) + 1} samples up to SEQ {seq}: the sensor or its bridge "
             "is not updating; expected its noise to change every axis from sample to sample",
+        )
+
+    def _on_jump(self, seq: int, a: float, w_imu: Float3, f_imu: Float3) -> None:
+        """A triad of sample ``seq`` taken for a transfer error (drivers.axis_checks)."""
+        checks = self._checks
+        self.counters.spikes += 1
+        if w_imu is not checks.w:
+            jump = max(abs(x - y) for x, y in zip(w_imu, checks.w, strict=True))
+            what = f"gyro jumped {jump / DEG_TO_RAD:.1f} deg/s"
+            bound = f"{GYRO_JUMP_RPS / DEG_TO_RAD:.0f} deg/s"
+        else:
+            jump = max(abs(x - y) for x, y in zip(f_imu, checks.f, strict=True))
+            what = f"accelerometer jumped {jump / GRAVITY_MPS2:.2f} g"
+            bound = f"{ACCEL_JUMP_MPS2 / GRAVITY_MPS2:.1f} g"
+        self._warn(
+            WarningKind.SPIKE,
+            a,
+            f"IMU {what} in one sample at SEQ {seq}: taken for a transfer error, the previous "
+            f"sample's values used for it (a lasting change is taken from the next sample); "
+            f"expected a change of at most {bound} a sample",
         )
 
     def _mount(self, v_imu: Float3) -> Float3:

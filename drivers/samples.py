@@ -52,7 +52,7 @@ class ImuSample:
     seq: int
     alarm: bool = False  # EA bit of any output word: some DIAG_STAT flag is set
     saturated: bool = False  # some axis at the end of its 14-bit register range
-    stuck: bool = False  # some axis's word unchanged for many samples (drivers.stuck_output)
+    stuck: bool = False  # some axis's word unchanged for many samples (drivers.axis_checks)
 
 
 @dataclass(frozen=True, slots=True)
@@ -155,7 +155,8 @@ class ImuCounters:
     alarms: int = 0  # samples with an EA bit set
     saturated: int = 0  # samples with some axis at the end of its register range
     no_new_data: int = 0  # samples with an ND bit clear
-    stuck: int = 0  # samples with some axis stuck (drivers.stuck_output)
+    stuck: int = 0  # samples with some axis stuck (drivers.axis_checks)
+    spikes: int = 0  # samples with a triad taken for a transfer error (same): held
     reanchors: int = 0  # time anchor restarts (DEC change, early arrivals, missed SEQ wraps)
     seq_errors: int = 0  # samples on time for the next SEQ but carrying another: taken as it
     seq_restarts: int = 0  # the bridge's SEQ counter restarted: counted from its new value

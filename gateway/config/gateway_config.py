@@ -15,7 +15,7 @@ from enum import Enum
 from pathlib import Path
 from typing import Any
 
-from drivers.stuck_output import STUCK_SAMPLES
+from drivers.axis_checks import STUCK_SAMPLES
 from gateway.config.config_schema import (
     ConfigError,
     from_table,

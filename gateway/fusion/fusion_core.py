@@ -21,7 +21,7 @@ sends NAVGW_STATUS alone at its rate, saying FAULT with the IMU not ok and the s
 in byte 6 (SPEC 4: an outage is reported, not silent). A gap of :data:`RESTART_GAP_S` or more
 restarts the engine: the motion over it is unknown, and a solution carried across it would be
 a guess. A saturated sample (an axis at the end of its register) or a stuck one (an axis's word
-unchanged sample after sample, :mod:`drivers.stuck_output`) is no measurement: it is not fed
+unchanged sample after sample, :mod:`drivers.axis_checks`) is no measurement: it is not fed
 to the engine, NAVGW_STATUS says FAULT from that sample on, and when the IMU measures again
 the engine restarts (the rotation meanwhile is unknown: 2 s of full-scale gyro left the
 attitude 179 deg off, then above 1 deg for 35 s, while STATUS said navigating; a 10 s freeze
