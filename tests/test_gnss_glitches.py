@@ -126,3 +126,33 @@ def test_epochs_older_than_the_history_are_counted_and_logged(
     ]
     assert len(late) == 1, late  # one line per 10 s of epoch time, not one per epoch
     assert f"epoch at t={T0_S + span[0] - 5.0:.3f} dropped" in late[0]
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+@pytest.mark.parametrize("where", ["speed", "course"])
+def test_one_epochs_velocity_glitch_is_not_the_reference_points(
+    tmp_path: Path, engine: Engine, where: str
+) -> None:
+    """One epoch's RMC speed 5 kn high (or its course 90 deg off), its position right: the
+    velocity is no one's. The observer had set the reference point's velocity to it and sent
+    the position 0.43 m off (field seed 7); now both stay within 5 cm."""
+    t_glitch = 70.0
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    fixes = [
+        (
+            dataclasses.replace(f, sog_mps=f.sog_mps + 2.57)
+            if where == "speed"
+            else dataclasses.replace(f, cog_rad=(f.cog_rad + np.pi / 2) % (2 * np.pi))
+        )
+        if f.sog_mps is not None
+        and f.cog_rad is not None
+        and t_glitch <= motion_time(f.t) < t_glitch + 0.1
+        else f
+        for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    ]
+    clean = gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    assert sum(a != b for a, b in zip(fixes, clean, strict=True)) == 1
+    log = tmp_path / "out.log"
+    run(log, engine, imu, fixes)
+    errors = [e for t, e in position_errors(log) if t >= 40.0]
+    assert errors and max(errors) < 0.05, max(errors)
