@@ -270,8 +270,8 @@ def _sample_maker() -> _SampleMaker:
     """``ImuSample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck)`` at half the cost: a
     frozen dataclass's ``__init__`` sets each field through ``object.__setattr__`` (~0.9 us a
     sample, as much as decoding both frames); this sets the same slots directly, so the sample
-    is the same. If ImuSample ever needs more than its slots set (other fields, a ``__post_init__``,
-    no slots), the class itself is called."""
+    is the same. If ImuSample ever needs more than its slots set (other fields, a
+    ``__post_init__``, no slots), the class itself is called."""
     names = ("t", "dt", "w_ib_b", "f_ib_b", "seq", "alarm", "saturated", "stuck")
     fields = dataclasses.fields(ImuSample)
     slots = [vars(ImuSample).get(n) for n in names]
@@ -282,26 +282,8 @@ def _sample_maker() -> _SampleMaker:
         or not all(isinstance(slot, types.MemberDescriptorType) for slot in slots)
     ):
 
-        def construct(
-            t: float,
-            dt: float,
-            w: Float3,
-            f: Float3,
-            seq: int,
-            alarm: bool,
-            saturated: bool,
-            stuck: bool,
-        ) -> ImuSample:
-            return ImuSample(
-                t=t,
-                dt=dt,
-                w_ib_b=w,
-                f_ib_b=f,
-                seq=seq,
-                alarm=alarm,
-                saturated=saturated,
-                stuck=stuck,
-            )
+        def construct(*values: Any) -> ImuSample:
+            return ImuSample(**dict(zip(names, values, strict=True)))
 
         return construct
     new, cls = object.__new__, ImuSample
