@@ -8,10 +8,10 @@ does so 24 samples running, 1e-24. A sensor that stopped converting, a bridge re
 last SPI read (SEQ counting, ND set), or a data line stuck high or low all give such runs,
 and the engines would integrate them as a vehicle that stopped rotating, or fell: roll went
 out 4 deg off while STATUS said navigating (a 10 s freeze on the field run). At the lowest
-rate (DEC 6, 12.8 Hz, under a noise of one LSB) a noisy axis repeats with a chance under 0.4
-a sample, and 24 running once in 10^4 hours of running. A source with no noise (a bench
-stimulus, a simulator without an error model) repeats its words whenever the vehicle stands
-still: ``ImuCanConfig.stuck_samples`` = 0 turns the check off for it.
+rate (DEC 6, 12.8 Hz, the accelerometer's noise 0.73 LSB) a noisy axis repeats with a chance
+of 0.36 a sample, and 24 running once in some 3 x 10^5 hours of running. A source with no
+noise (a bench stimulus, a simulator without an error model) repeats its words whenever the
+vehicle stands still: ``ImuCanConfig.stuck_samples`` = 0 turns the check off for it.
 
 **Spikes.** SPI has no checksum: a bit flipped on the way from the sensor to the bridge is
 a value sent with a good CAN CRC. One gyro sample 102.4 deg/s off (bit 11) put roll 0.5 deg

@@ -74,7 +74,7 @@ def longest_run(samples: list[ImuSample]) -> int:
 def test_a_working_imu_is_never_stuck_even_parked_with_the_engine_off(dec: int) -> None:
     """Ten minutes of the datasheet noise alone at 204.8 and 51.2 Hz: the longest run of an
     unchanged axis is far below the 24 that make it stuck (at 51.2 Hz the accelerometer's
-    noise is 1.5 LSB a sample: runs of 6-8; 24 would take some 10^12 hours)."""
+    noise is 1.5 LSB a sample: runs of 6-8; 24 would take some 10^11 hours)."""
     decoder = ImuDecoder()
     msgs = parked(600.0, dec, seed=dec)
     samples = [s for m in msgs for s in decoder.feed(m) if isinstance(s, ImuSample)]
