@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from gateway.estimation.gnss_track import GnssTrack
 
 
@@ -42,3 +44,26 @@ def test_rejections_that_began_with_a_jump_hold_for_position_reset_s() -> None:
         assert not track.reset_due(tk, 20, 10.0)
         track.rejected(tk)
     assert track.reset_due(t + 10.0, 20, 10.0)  # it stayed: the GNSS moved for good
+
+
+def test_a_decimetre_step_of_a_fixed_track_is_a_jump() -> None:
+    """A wrong RTK ambiguity moves a fixed (1 cm) track 0.3 m: a jump (with a 0.5 m floor it
+    was a continuous track, and the engines took it after 2 s instead of 10)."""
+    track = GnssTrack()
+    t = drive(track, 0.0, 50)
+    drive(track, t, 5, north0=0.3)
+    assert track.jumped_at_s == t
+
+
+def test_a_tight_turn_at_1_hz_is_no_jump() -> None:
+    """6 m/s on a 10 m radius (0.6 rad/s), one epoch a second: the trapezoid of the two
+    velocities misses the arc by 18 cm, beyond the floor and 5 sigma of a 1 cm track."""
+    track = GnssTrack()
+    rng = np.random.default_rng(3)
+    u, w = 6.0, 0.6
+    for k in range(60):
+        t = float(k)
+        p = (u / w * np.sin(w * t) + 0.01 * rng.standard_normal(),
+             u / w * (1.0 - np.cos(w * t)) + 0.01 * rng.standard_normal())  # fmt: skip
+        track.add(t, p, (u * np.cos(w * t), u * np.sin(w * t)), 0.01)
+    assert track.jumped_at_s is None

@@ -22,7 +22,10 @@ class GnssTrack:
     """The last antenna position and velocity the receiver gave (local NE, m, m/s)."""
 
     jump_sigma: float = 5.0  # a jump is beyond this many sigma of two independent positions
-    jump_floor_m: float = 0.5  # plus this (velocity over the step, receiver smoothing)
+    #: plus this: epoch timing (20 ms at 4 m/s: 8 cm) and the receiver's smoothing. A fixed
+    #: RTK track moves by millimetres more than its velocity says; a wrong ambiguity or
+    #: multipath under a tree line moves it by decimetres (with 0.5 m, 0.3 m was no jump)
+    jump_floor_m: float = 0.1
     jumped_at_s: float | None = None  # epoch time of the last jump
     rejecting_since_s: float | None = None  # epoch time the engine began to reject positions
     rejections: int = 0  # consecutive positions the engine rejected
@@ -40,7 +43,10 @@ class GnssTrack:
             pred_n = last[1] + 0.5 * (last[3] + vn) * dt
             pred_e = last[2] + 0.5 * (last[4] + ve) * dt
             off_m = math.hypot(p_ne_m[0] - pred_n, p_ne_m[1] - pred_e)
-            if off_m > self.jump_sigma * math.sqrt(2.0) * sigma_h_m + self.jump_floor_m:
+            # the trapezoid's error in a turn is u dt (w dt)^2 / 12 (3 cm at 1 Hz, 3 m/s,
+            # 0.33 rad/s); a quarter of the velocity change over the step bounds it
+            curve_m = 0.25 * math.hypot(vn - last[3], ve - last[4]) * dt
+            if off_m > self.jump_sigma * math.sqrt(2.0) * sigma_h_m + self.jump_floor_m + curve_m:
                 self.jumped_at_s = t_s
         self._last = (t_s, p_ne_m[0], p_ne_m[1], vn, ve)
 

@@ -1547,18 +1547,18 @@ class ObserverEngine:
     ) -> Literal["use", "reject", "reset"]:
         """Use, reject (a glitch) or reset to the position whose horizontal residual is ``dp``.
 
-        Gate: ``glitch_sigma`` x the residual's 1-sigma as the position channel predicts it
-        (the fix's sigma and the dead-reckoning error since the last position used) +
-        ``position_gate_m``. A glitch is counted, logged at a limited rate, and not weighed
-        in (the velocity still is); the mode is DEGRADED meanwhile.
+        Gate: the innovation (the residual less the fix error the channel carries) beyond
+        ``glitch_sigma`` x its 1-sigma as the channel predicts it (the fix's sigma and the
+        dead-reckoning error since the last position used) + ``position_gate_m``. A glitch
+        is counted, logged at a limited rate, and not weighed in (the velocity still is); the
+        mode is DEGRADED meanwhile.
         The engine resets to the GNSS after ``reset_rejections`` if the receiver's track is
         continuous (the engine is off), else after ``position_reset_s`` (it moved for good:
         a new base station, a datum change); see :mod:`gateway.estimation.gnss_track`.
         """
-        cfg, track = self.cfg, self._track
-        gate_m = cfg.glitch_sigma * self._position.horizontal_innovation_sigma_m()
-        gate_m += cfg.position_gate_m
-        residual_m = math.hypot(dp[0], dp[1])
+        cfg, track, channel = self.cfg, self._track, self._position
+        gate_m = cfg.glitch_sigma * channel.horizontal_innovation_sigma_m() + cfg.position_gate_m
+        residual_m = channel.horizontal_innovation_m(dp)
         if residual_m <= gate_m:
             track.accepted()
             return "use"

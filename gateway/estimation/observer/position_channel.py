@@ -119,6 +119,13 @@ class PositionChannel:
             a.p_bb = self._var_b[i]
             a.b_m = 0.0
 
+    def horizontal_innovation_m(self, dz_ne_m: list[float]) -> float:
+        """Horizontal length of the innovation of the residuals fix - position (north, east):
+        the residual less the fix error the channel carries (a DGNSS spell's metre, once
+        learnt, is no surprise), what :meth:`horizontal_innovation_sigma_m` describes."""
+        ax = self._axes
+        return math.hypot(dz_ne_m[0] - ax[0].b_m, dz_ne_m[1] - ax[1].b_m)
+
     def horizontal_innovation_sigma_m(self) -> float:
         """1-sigma of the next horizontal residual (root sum of north and east)."""
         ax = self._axes
