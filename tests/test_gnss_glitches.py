@@ -156,3 +156,36 @@ def test_one_epochs_velocity_glitch_is_not_the_reference_points(
     run(log, engine, imu, fixes)
     errors = [e for t, e in position_errors(log) if t >= 40.0]
     assert errors and max(errors) < 0.05, max(errors)
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_a_height_glitch_goes_out_neither_in_129029_nor_as_navigating(
+    tmp_path: Path, engine: Engine
+) -> None:
+    """GGA's altitude 5 m high for 5 s, RTK fixed, the horizontal right (multipath on the
+    vertical). The observer's height loop followed it into 129029 at once, the EKF after
+    2 s (its receiver track saw no horizontal jump): 5 m off, NAVIGATING. Now both reject
+    the fixes, DEGRADED, and every altitude sent is within 10 cm."""
+    span = (70.0, 75.0)
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    fixes = [
+        dataclasses.replace(f, alt_m=f.alt_m + 5.0)
+        if f.alt_m is not None and span[0] <= motion_time(f.t) < span[1]
+        else f
+        for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    ]
+    log = tmp_path / "out.log"
+    run(log, engine, imu, fixes)
+    errors = []
+    for m in decode_log(log):
+        if m.id != "gnssPositionData" or m.fields["altitude"] is None:
+            continue
+        t = motion_time(m.t)
+        lla = np.array([m.fields["latitude"], m.fields["longitude"], m.fields["altitude"]])
+        down = lla_to_ned(lla, ORIGIN_LLA)[2]
+        errors.append((t, abs(down - state_at(MOTION, t).p_ned_m[0][2])))
+    assert len([e for t, e in errors if span[0] <= t < span[1]]) >= 40
+    worst = max(e for t, e in errors if t >= 40.0)
+    assert worst < 0.1, worst
+    modes = {Mode(d[2]) for t, d in status(log) if span[0] + 0.2 <= t < span[1]}
+    assert modes == {Mode.DEGRADED}, modes

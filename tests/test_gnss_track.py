@@ -67,3 +67,17 @@ def test_a_tight_turn_at_1_hz_is_no_jump() -> None:
              u / w * (1.0 - np.cos(w * t)) + 0.01 * rng.standard_normal())  # fmt: skip
         track.add(t, p, (u * np.cos(w * t), u * np.sin(w * t)), 0.01)
     assert track.jumped_at_s is None
+
+
+def test_a_height_step_is_a_jump_and_a_crest_is_not() -> None:
+    """NMEA has no vertical velocity: the height is extrapolated from the last two. Over a
+    crest (3 m/s on a 10 m vertical radius, 0.9 m/s^2) at 10 Hz the trend holds to a few mm;
+    GGA's altitude 5 m off for one epoch is a jump."""
+    track = GnssTrack()
+    for k in range(100):
+        t = 0.1 * k
+        down = 10.0 * (1.0 - np.cos(0.3 * (t - 5.0)))  # highest at 5 s: a crest
+        track.add(t, (0.0, 3.0 * t), (0.0, 3.0), 0.014, down, 0.025)
+    assert track.jumped_at_s is None
+    track.add(10.0, (0.0, 30.0), (0.0, 3.0), 0.014, -5.0, 0.025)
+    assert track.jumped_at_s == 10.0

@@ -15,6 +15,8 @@ from dataclasses import dataclass
 
 #: Epochs further apart than this are not compared (an outage: no continuity to judge).
 MAX_STEP_S = 2.0
+#: A wheeled vehicle's vertical acceleration on the ground (a crest at 4 m/s, 20 m radius).
+MAX_VERTICAL_ACCEL_MPS2 = 1.0
 
 
 @dataclass
@@ -30,12 +32,15 @@ class GnssTrack:
     rejecting_since_s: float | None = None  # epoch time the engine began to reject positions
     rejections: int = 0  # consecutive positions the engine rejected
     _last: tuple[float, float, float, float, float] | None = None  # t, n, e, vn, ve
+    _heights: tuple[tuple[float, float], ...] = ()  # (t, down m) of the last two epochs
 
     def add(
         self, t_s: float, p_ne_m: tuple[float, float], v_ne_mps: tuple[float, float] | None,
-        sigma_h_m: float,
+        sigma_h_m: float, down_m: float | None = None, sigma_d_m: float = 0.0,
     ) -> None:  # fmt: skip
-        """Compare one epoch with where the last one's velocity (and its own) led."""
+        """Compare one epoch with where the last one's velocity (and its own) led; and its
+        height (``down_m``, 1-sigma ``sigma_d_m``) with the last two heights' trend."""
+        self._add_height(t_s, down_m, sigma_d_m)
         vn, ve = v_ne_mps if v_ne_mps is not None else (math.nan, math.nan)
         last = self._last
         if last is not None and 0.0 < t_s - last[0] <= MAX_STEP_S and math.isfinite(vn + ve):
@@ -49,6 +54,23 @@ class GnssTrack:
             if off_m > self.jump_sigma * math.sqrt(2.0) * sigma_h_m + self.jump_floor_m + curve_m:
                 self.jumped_at_s = t_s
         self._last = (t_s, p_ne_m[0], p_ne_m[1], vn, ve)
+
+    def _add_height(self, t_s: float, down_m: float | None, sigma_d_m: float) -> None:
+        """NMEA has no vertical velocity: the height is extrapolated from the last two. The
+        second difference of three heights has sqrt(6) sigma of one; the vehicle's vertical
+        acceleration (1 m/s^2 over a crest) adds a dt (dt + dt_prev) / 2: 1 cm at 10 Hz."""
+        if down_m is None:
+            self._heights = ()
+            return
+        h = self._heights
+        if len(h) == 2:
+            dt, dt_prev = t_s - h[1][0], h[1][0] - h[0][0]
+            if 0.0 < dt <= MAX_STEP_S and 0.0 < dt_prev <= MAX_STEP_S:
+                pred = h[1][1] + (h[1][1] - h[0][1]) * dt / dt_prev
+                bound = self.jump_sigma * math.sqrt(6.0) * sigma_d_m + self.jump_floor_m
+                if abs(down_m - pred) > bound + MAX_VERTICAL_ACCEL_MPS2 * dt * (dt + dt_prev) / 2:
+                    self.jumped_at_s = t_s
+        self._heights = (h[-1], (t_s, down_m)) if h else ((t_s, down_m),)
 
     def jumped_since(self, t_s: float) -> bool:
         """Did the track jump at or after ``t_s``?"""

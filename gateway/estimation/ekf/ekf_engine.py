@@ -539,9 +539,12 @@ class EkfEngine:
             self._set_fix_error_model(sig_pos, restart=self._last_quality != fix.quality)
         self._last_quality = fix.quality
         p_ant = self._antenna_ned(fix) if sig_pos is not None else None
-        if p_ant is not None:
+        if p_ant is not None and sig_pos is not None:
             p_ne = (float(p_ant[0]), float(p_ant[1]))
-            self._track.add(t_e, p_ne, fix.vel_ne_mps, fix.horizontal_sigma_m)
+            self._track.add(
+                t_e, p_ne, fix.vel_ne_mps, fix.horizontal_sigma_m, float(p_ant[2]),
+                float(sig_pos[2]),
+            )  # fmt: skip
         since = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
         if sig_pos is not None and (
             since > self.cfg.reset_outage_s

@@ -1421,7 +1421,11 @@ class ObserverEngine:
         if self._frame is None:
             self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
         p_ant = self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m)
-        self._track.add(t_e, (p_ant[0], p_ant[1]), fix.vel_ne_mps, fix.horizontal_sigma_m)
+        sigma_ned = self._fix_sigma_m(fix)
+        self._track.add(
+            t_e, (p_ant[0], p_ant[1]), fix.vel_ne_mps, fix.horizontal_sigma_m, p_ant[2],
+            sigma_ned[2],
+        )  # fmt: skip
         p_ref = reference_from_antenna(p_ant, c_bn, self._l_ant_f)
         p, v, sf = self._p_ned_m, self._v_ned_mps, self._sf
         if row is None:
@@ -1430,7 +1434,7 @@ class ObserverEngine:
                 self._log.warning(t_e, late_epoch_text(t_e, self._hist[0][_T]), "late")
             return
         channel = self._position
-        channel.set_fix(fix.quality, self._fix_sigma_m(fix))
+        channel.set_fix(fix.quality, sigma_ned)
         if not self._nav_valid:
             age = self._t_s - t_e
             vn, ve = v_ref_ne if v_ref_ne is not None else (0.0, 0.0)
@@ -1549,7 +1553,9 @@ class ObserverEngine:
 
         Gate: the innovation (the residual less the fix error the channel carries) beyond
         ``glitch_sigma`` x its 1-sigma as the channel predicts it (the fix's sigma and the
-        dead-reckoning error since the last position used) + ``position_gate_m``. A glitch
+        dead-reckoning error since the last position used) + ``position_gate_m``, or the
+        height residual beyond the same of the height's (an RTK height 5 m off went out in
+        129029, NAVIGATING, through the height loop). A glitch
         is counted, logged at a limited rate, and not weighed in (the velocity still is); the
         mode is DEGRADED meanwhile.
         The engine resets to the GNSS after ``reset_rejections`` if the receiver's track is
@@ -1559,7 +1565,8 @@ class ObserverEngine:
         cfg, track, channel = self.cfg, self._track, self._position
         gate_m = cfg.glitch_sigma * channel.horizontal_innovation_sigma_m() + cfg.position_gate_m
         residual_m = channel.horizontal_innovation_m(dp)
-        if residual_m <= gate_m:
+        gate_d_m = cfg.glitch_sigma * channel.vertical_innovation_sigma_m() + cfg.position_gate_m
+        if residual_m <= gate_m and abs(dp[2]) <= gate_d_m:
             track.accepted()
             return "use"
         if track.reset_due(t_e, cfg.reset_rejections, cfg.position_reset_s):
@@ -1575,7 +1582,8 @@ class ObserverEngine:
         self._log.warning(
             t_e,
             f"GNSS position glitch at t={t_e:.3f}: {residual_m:.2f} m from the dead-reckoned "
-            f"position, gate {gate_m:.2f} m (quality {int(fix.quality)}); position not used",
+            f"position, gate {gate_m:.2f} m; height {dp[2]:+.2f} m off, gate {gate_d_m:.2f} m "
+            f"(quality {int(fix.quality)}); position not used",
             "glitch",
         )
         return "reject"
