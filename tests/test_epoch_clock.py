@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import dataclasses
+
 import numpy as np
 import pytest
 
@@ -94,3 +96,22 @@ def test_delays_out_of_a_synced_receivers_reach_mean_a_free_host(host_minus_utc_
     clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.04)
     epochs(clock, fixes(host_minus_utc_s, latency_s=0.04, jitter_s=0.0, n=5))
     assert clock.host_follows_utc is False
+
+
+def test_a_receivers_utc_ahead_for_a_while_is_placed_by_its_arrival_on_a_utc_host() -> None:
+    """Five seconds of the receiver's UTC 1 s ahead (a firmware or leap-second glitch) on a
+    host that follows UTC: those epochs arrived before their stamp, impossible there, so the
+    stamp is wrong, not the data. They are placed by arrival less the least delay, and the
+    epochs after them at their UTC again. Before, their delay (-0.93 s) became the least:
+    ``receive`` with it for the window's 10 s after them, every epoch placed 1 s early."""
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.05)
+    stream = fixes(host_minus_utc_s=0.0, latency_s=0.068, jitter_s=0.01, n=200)
+    glitched = [
+        dataclasses.replace(f, t_utc=f.t_utc + 1.0) if 50 <= k < 100 and f.t_utc else f
+        for k, f in enumerate(stream)
+    ]
+    t_e = epochs(clock, glitched)
+    true = np.array(utc_times(stream))
+    assert np.max(np.abs(t_e[50:100] - true[50:100])) < 0.01  # the serial jitter's spread
+    assert np.array_equal(t_e[:50], true[:50]) and np.array_equal(t_e[100:], true[100:])
+    assert clock.host_follows_utc is True

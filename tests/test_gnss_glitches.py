@@ -17,6 +17,7 @@ import pytest
 from drivers.samples import GnssFix
 from gateway.config.gateway_config import Engine
 from gateway.estimation.ekf.ekf_engine import EkfEngine
+from gateway.estimation.epoch_clock import EpochTime
 from gateway.estimation.geodesy import lla_to_ned
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Mode
@@ -189,3 +190,36 @@ def test_a_height_glitch_goes_out_neither_in_129029_nor_as_navigating(
     assert worst < 0.1, worst
     modes = {Mode(d[2]) for t, d in status(log) if span[0] + 0.2 <= t < span[1]}
     assert modes == {Mode.DEGRADED}, modes
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+@pytest.mark.parametrize("shift_s", [1.0, -1.0])
+def test_the_receivers_utc_off_by_a_second_for_a_while(
+    tmp_path: Path, engine: Engine, shift_s: float
+) -> None:
+    """The sentences' UTC 1 s ahead (or behind) for 5 s while driving, the data right, the
+    host clock following UTC (epoch_time auto, the default). Ahead: the epochs arrived before
+    their stamp, impossible on this host, so they are placed by their arrival: no effect
+    (before, the epoch clock turned to ``receive`` and placed the next 10 s of epochs 1 s
+    early: 3-4 m off, NAVIGATING). Behind: the receiver's time went back, a jump of its
+    track; the positions are rejected as glitches, DEGRADED (before, both engines reset to
+    them after 2 s as to a continuous track: 3 m off, NAVIGATING)."""
+    span = (70.0, 75.0)
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    fixes = [
+        dataclasses.replace(f, t_utc=f.t_utc + shift_s)
+        if f.t_utc is not None and span[0] <= motion_time(f.t) < span[1]
+        else f
+        for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    ]
+    log = tmp_path / "out.log"
+    run(log, engine, imu, fixes, epoch_time=EpochTime.AUTO)
+    errors = [(t, e) for t, e in position_errors(log) if t >= 40.0]
+    told = [t for t, d in status(log) if Mode(d[2]) in (Mode.DEGRADED, Mode.FAULT)]
+    if shift_s > 0.0:
+        assert max(e for _, e in errors) < 0.05
+        assert not told
+    else:
+        untold = [(t, e) for t, e in errors if e > 0.1 and min(abs(np.array(told) - t)) > 0.1]
+        assert not untold, untold[:5]
+        assert max(e for t, e in errors if t >= span[1] + 12.0) < 0.05

@@ -81,3 +81,12 @@ def test_a_height_step_is_a_jump_and_a_crest_is_not() -> None:
     assert track.jumped_at_s is None
     track.add(10.0, (0.0, 30.0), (0.0, 3.0), 0.014, -5.0, 0.025)
     assert track.jumped_at_s == 10.0
+
+
+def test_epochs_going_back_in_time_are_a_jump() -> None:
+    """The receiver's UTC stepping back 1 s: its epochs are not a track to reset to after 2 s
+    as if the engine were off (both engines did, and sent positions 3 m off, NAVIGATING)."""
+    track = GnssTrack()
+    t = drive(track, 0.0, 50)
+    track.add(t - 0.9, (0.0, 3.0 * t), (0.0, 3.0), 0.014)
+    assert track.jumped_at_s == t - 0.9

@@ -54,24 +54,39 @@ class EpochClock:
     @property
     def host_follows_utc(self) -> bool | None:
         """Whether the host clock follows UTC, as the mode and the delays say (None: no date)."""
-        return self._follows_utc(min(self._delays) if self._delays else None)
+        return self._follows_utc(self._least_possible_delay()) if self._delays else None
 
-    def _follows_utc(self, least_delay_s: float | None) -> bool | None:
+    def _least_possible_delay(self) -> float | None:
+        """The least recent delay an epoch can have on a synchronised host: delays before
+        the epoch (below ``SYNCED_DELAY_S``) are left out. An epoch cannot arrive before it
+        happened there, so they are the receiver's UTC jumping ahead for a while (a firmware
+        glitch, a leap second), or a host clock behind UTC, whose every delay is one."""
+        possible = [d for d in self._delays if d >= SYNCED_DELAY_S[0]]
+        return min(possible) if possible else None
+
+    def _follows_utc(self, least_possible_s: float | None) -> bool:
         if self.mode is not EpochTime.AUTO:
             return self.mode is EpochTime.UTC
-        if least_delay_s is None:
-            return None
-        return SYNCED_DELAY_S[0] <= least_delay_s <= SYNCED_DELAY_S[1]
+        return least_possible_s is not None and least_possible_s <= SYNCED_DELAY_S[1]
 
     def epoch_time(self, fix: GnssFix) -> float:
-        """Epoch instant of ``fix`` on the host clock, s."""
+        """Epoch instant of ``fix`` on the host clock, s.
+
+        On a host that follows UTC, an epoch that arrived before its UTC (the receiver's
+        clock ahead for a while) is placed by its arrival, less the least possible delay:
+        its data are right, its time stamp is not. Five seconds of UTC 1 s ahead (field seed
+        1, moving) had turned ``auto`` to ``receive`` with that delay as the least for the
+        window's 10 s after them: epochs 1 s early, positions 3-4 m off, NAVIGATING."""
         if fix.t_utc is None:
             return fix.t - self.receiver_latency_s
-        self._delays.append(fix.t - fix.t_utc)
-        least_s = min(self._delays)
-        if self._follows_utc(least_s):
-            return fix.t_utc
-        return fix.t_utc + least_s - self.receiver_latency_s
+        delay_s = fix.t - fix.t_utc
+        self._delays.append(delay_s)
+        least_possible_s = self._least_possible_delay()
+        if self._follows_utc(least_possible_s):
+            if delay_s >= SYNCED_DELAY_S[0] or least_possible_s is None:
+                return fix.t_utc
+            return fix.t - least_possible_s
+        return fix.t_utc + min(self._delays) - self.receiver_latency_s
 
 
 def late_epoch_text(t_e: float, oldest_s: float) -> str:

@@ -43,7 +43,11 @@ class GnssTrack:
         self._add_height(t_s, down_m, sigma_d_m)
         vn, ve = v_ne_mps if v_ne_mps is not None else (math.nan, math.nan)
         last = self._last
-        if last is not None and 0.0 < t_s - last[0] <= MAX_STEP_S and math.isfinite(vn + ve):
+        if last is not None and t_s < last[0]:
+            # the receiver's UTC went back (a clock glitch): its epochs are not a track we
+            # can follow; taken as continuous, the engines reset to positions 1 s old
+            self.jumped_at_s = t_s
+        elif last is not None and 0.0 < t_s - last[0] <= MAX_STEP_S and math.isfinite(vn + ve):
             dt = t_s - last[0]
             pred_n = last[1] + 0.5 * (last[3] + vn) * dt
             pred_e = last[2] + 0.5 * (last[4] + ve) * dt
