@@ -90,3 +90,44 @@ def test_epochs_going_back_in_time_are_a_jump() -> None:
     t = drive(track, 0.0, 50)
     track.add(t - 0.9, (0.0, 3.0 * t), (0.0, 3.0), 0.014)
     assert track.jumped_at_s == t - 0.9
+
+
+def test_a_fixed_track_drifting_2_cm_s_is_caught_within_the_window_and_noise_is_not() -> None:
+    """Positions leaving their own velocity by 2 mm a step (2 cm/s at 10 Hz: multipath, a
+    wrong fix as the geometry turns): no step is a jump, the window's sum is. The same
+    track with the receiver's noise (1 cm positions, 2 cm/s velocity) never is."""
+    rng = np.random.default_rng(5)
+    clean, drifting = GnssTrack(), GnssTrack()
+    flagged_at = None
+    for k in range(300):
+        t = 0.1 * k
+        v = (0.02 * rng.standard_normal(), 3.0 + 0.02 * rng.standard_normal())
+        p = (0.01 * rng.standard_normal(), 3.0 * t + 0.01 * rng.standard_normal())
+        clean.add(t, p, v, 0.014, quality=4)
+        assert not clean.drifting
+        drifting.add(t, (p[0] + 0.02 * max(0.0, t - 10.0), p[1]), v, 0.014, quality=4)
+        if drifting.drifting and flagged_at is None:
+            flagged_at = t
+    assert flagged_at is not None and 10.0 < flagged_at < 20.0, flagged_at
+
+
+def test_a_swaying_mast_at_1_hz_and_a_new_solution_are_no_drift() -> None:
+    """1 Hz epochs of a 3 m mast rocking at 0.7 Hz, 0.3 m/s: the antenna's velocity,
+    sampled once a second, misses its mean by decimetres over each step, and the trapezoid
+    with it, while the positions are exact. Then RTK float ends 0.3 m off and fixed
+    resumes: the step between the solutions is not counted."""
+    track = GnssTrack()
+    w = 2.0 * np.pi * 0.7
+    for k in range(60):
+        t = float(k)
+        p = (0.0, 3.0 * t - 0.3 / w * np.cos(w * t))
+        track.add(t, p, (0.0, 3.0 + 0.3 * np.sin(w * t)), 0.014, quality=4)
+        assert not track.drifting
+    track = GnssTrack()
+    for k in range(100):
+        t = 0.1 * k
+        track.add(t, (0.3, 3.0 * t), (0.0, 3.0), 0.21, quality=5)
+    for k in range(100, 200):
+        t = 0.1 * k
+        track.add(t, (0.0, 3.0 * t), (0.0, 3.0), 0.014, quality=4)
+        assert not track.drifting

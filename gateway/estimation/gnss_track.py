@@ -6,17 +6,28 @@ leaves where its own velocity was taking it. An engine that is off (after an out
 starved of epochs on a busy host) disagrees with a track that is continuous. The engines
 reject positions beyond their gate for a long time (``position_reset_s``) only after a jump,
 and reset to a continuous track after a few epochs (``reset_rejections``).
+
+A solution can also leave its own velocity slowly, by less than a jump in any step (a
+wrong fix as the geometry turns): the engine follows it, since each innovation is small.
+Over ``DRIFT_WINDOW_S`` the misses add up; beyond their noise the track is ``drifting``, and
+the engines reject its positions as they reject a glitch.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections import deque
+from dataclasses import dataclass, field
 
 #: Epochs further apart than this are not compared (an outage: no continuity to judge).
 MAX_STEP_S = 2.0
 #: A wheeled vehicle's vertical acceleration on the ground (a crest at 4 m/s, 20 m radius).
 MAX_VERTICAL_ACCEL_MPS2 = 1.0
+#: The receiver's positions are compared with its own velocity over this long: a drift of
+#: the solution (multipath, a wrong fix as the geometry changes) that no one step shows.
+DRIFT_WINDOW_S = 10.0
+#: Below this speed receivers hold or filter the course: no drift test there.
+DRIFT_MIN_SPEED_MPS = 0.5
 
 
 @dataclass
@@ -31,33 +42,89 @@ class GnssTrack:
     jumped_at_s: float | None = None  # epoch time of the last jump
     rejecting_since_s: float | None = None  # epoch time the engine began to reject positions
     rejections: int = 0  # consecutive positions the engine rejected
+    drifting: bool = False  # the last epoch's positions left the receiver's own velocity
+    drift_m: float = 0.0  # by this much over the drift window
     _last: tuple[float, float, float, float, float] | None = None  # t, n, e, vn, ve
     _heights: tuple[tuple[float, float], ...] = ()  # (t, down m) of the last two epochs
+    #: (t, north, east, turn bound, noise variance) of each step's miss of its velocity
+    _steps: deque[tuple[float, float, float, float, float]] = field(default_factory=deque)
+    _quality: int | None = None  # the solution the window's steps belong to
 
     def add(
         self, t_s: float, p_ne_m: tuple[float, float], v_ne_mps: tuple[float, float] | None,
         sigma_h_m: float, down_m: float | None = None, sigma_d_m: float = 0.0,
+        quality: int | None = None,
     ) -> None:  # fmt: skip
-        """Compare one epoch with where the last one's velocity (and its own) led; and its
-        height (``down_m``, 1-sigma ``sigma_d_m``) with the last two heights' trend."""
+        """Compare one epoch with where the last one's velocity (and its own) led, and the
+        positions of the last ``DRIFT_WINDOW_S`` with that velocity's integral (the steps
+        of one solution, ``quality``); and its height (``down_m``, 1-sigma ``sigma_d_m``)
+        with the last two heights' trend."""
         self._add_height(t_s, down_m, sigma_d_m)
         vn, ve = v_ne_mps if v_ne_mps is not None else (math.nan, math.nan)
         last = self._last
+        new_solution = quality != self._quality
+        if new_solution:
+            self._steps.clear()  # a new solution: its error is not the last one's
+            self._quality = quality
         if last is not None and t_s < last[0]:
             # the receiver's UTC went back (a clock glitch): its epochs are not a track we
             # can follow; taken as continuous, the engines reset to positions 1 s old
             self.jumped_at_s = t_s
+            self._steps.clear()
         elif last is not None and 0.0 < t_s - last[0] <= MAX_STEP_S and math.isfinite(vn + ve):
             dt = t_s - last[0]
-            pred_n = last[1] + 0.5 * (last[3] + vn) * dt
-            pred_e = last[2] + 0.5 * (last[4] + ve) * dt
-            off_m = math.hypot(p_ne_m[0] - pred_n, p_ne_m[1] - pred_e)
+            miss_n = p_ne_m[0] - (last[1] + 0.5 * (last[3] + vn) * dt)
+            miss_e = p_ne_m[1] - (last[2] + 0.5 * (last[4] + ve) * dt)
             # the trapezoid's error in a turn is u dt (w dt)^2 / 12 (3 cm at 1 Hz, 3 m/s,
             # 0.33 rad/s); a quarter of the velocity change over the step bounds it
             curve_m = 0.25 * math.hypot(vn - last[3], ve - last[4]) * dt
-            if off_m > self.jump_sigma * math.sqrt(2.0) * sigma_h_m + self.jump_floor_m + curve_m:
+            bound_m = self.jump_sigma * math.sqrt(2.0) * sigma_h_m + self.jump_floor_m
+            if math.hypot(miss_n, miss_e) > bound_m + curve_m:
                 self.jumped_at_s = t_s
+                self._steps.clear()
+            elif new_solution:
+                pass  # the step from the last solution to this one carries their difference
+            elif min(math.hypot(vn, ve), math.hypot(last[3], last[4])) < DRIFT_MIN_SPEED_MPS:
+                self._steps.clear()
+            else:
+                # the trapezoid's miss in the turn itself (twice), and the step's noise as
+                # 1-sigma: a mast swaying near 1 Hz (omega 2 pi) moves the velocity by dv in
+                # a step, and the trapezoid misses by dv dt (omega dt) / 12, at most a quarter
+                # of dv dt (two samples 1 s apart miss their mean by decimetres either way)
+                noise_m = math.hypot(vn - last[3], ve - last[4]) * dt * min(0.25, 0.5 * dt)
+                turn_rad = math.atan2(last[3] * ve - last[4] * vn, last[3] * vn + last[4] * ve)
+                speed = 0.5 * (math.hypot(vn, ve) + math.hypot(last[3], last[4]))
+                turn_m = speed * dt * turn_rad**2 / 6.0
+                self._steps.append((t_s, miss_n, miss_e, turn_m, noise_m * noise_m))
+        else:
+            self._steps.clear()
         self._last = (t_s, p_ne_m[0], p_ne_m[1], vn, ve)
+        self._test_drift(t_s, sigma_h_m)
+
+    def _test_drift(self, t_s: float, sigma_h_m: float) -> None:
+        """Positions that leave the receiver's own (Doppler) velocity slowly, by less than a
+        jump in any step: their misses add up over the window, where a working solution's
+        (its wander over 10 s, its velocity's noise integrated) stay within centimetres. A
+        fixed solution drifting 2 cm/s was followed 0.6 m, NAVIGATING, by both engines."""
+        steps = self._steps
+        while steps and steps[0][0] <= t_s - DRIFT_WINDOW_S:
+            steps.popleft()
+        drift_n = sum(s[1] for s in steps)
+        drift_e = sum(s[2] for s in steps)
+        turn_m = sum(s[3] for s in steps)
+        sigma_m = math.sqrt(sigma_h_m * sigma_h_m + sum(s[4] for s in steps))
+        self.drift_m = math.hypot(drift_n, drift_e)
+        self.drifting = self.drift_m > self.jump_sigma * sigma_m + self.jump_floor_m + turn_m
+        if self.drifting:
+            self.jumped_at_s = t_s
+
+    def drift_text(self, t_s: float) -> str:
+        """The warning for positions rejected because the track drifts."""
+        return (
+            f"GNSS positions at t={t_s:.3f} left the receiver's own velocity by "
+            f"{self.drift_m:.2f} m over the last {DRIFT_WINDOW_S:g} s (a drifting solution); "
+            "positions not used"
+        )
 
     def _add_height(self, t_s: float, down_m: float | None, sigma_d_m: float) -> None:
         """NMEA has no vertical velocity: the height is extrapolated from the last two. The

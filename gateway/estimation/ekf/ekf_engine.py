@@ -543,7 +543,7 @@ class EkfEngine:
             p_ne = (float(p_ant[0]), float(p_ant[1]))
             self._track.add(
                 t_e, p_ne, fix.vel_ne_mps, fix.horizontal_sigma_m, float(p_ant[2]),
-                float(sig_pos[2]),
+                float(sig_pos[2]), int(fix.quality),
             )  # fmt: skip
         since = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
         if sig_pos is not None and (
@@ -555,7 +555,11 @@ class EkfEngine:
             return
         c_e = row[ROW_C].reshape(3, 3)
         measurements: list[Measurement] = []
-        if sig_pos is not None and p_ant is not None:
+        if sig_pos is not None and p_ant is not None and self._track.drifting:
+            self.counters.position_rejected += 1
+            self._track.rejected(t_e)
+            self._log.warning(t_e, self._track.drift_text(t_e), "glitch")
+        elif sig_pos is not None and p_ant is not None:
             measurements.append(
                 fuse_position(
                     row[ROW_P],

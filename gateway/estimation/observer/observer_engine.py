@@ -1424,7 +1424,7 @@ class ObserverEngine:
         sigma_ned = self._fix_sigma_m(fix)
         self._track.add(
             t_e, (p_ant[0], p_ant[1]), fix.vel_ne_mps, fix.horizontal_sigma_m, p_ant[2],
-            sigma_ned[2],
+            sigma_ned[2], int(fix.quality),
         )  # fmt: skip
         p_ref = reference_from_antenna(p_ant, c_bn, self._l_ant_f)
         p, v, sf = self._p_ned_m, self._v_ned_mps, self._sf
@@ -1566,7 +1566,7 @@ class ObserverEngine:
         gate_m = cfg.glitch_sigma * channel.horizontal_innovation_sigma_m() + cfg.position_gate_m
         residual_m = channel.horizontal_innovation_m(dp)
         gate_d_m = cfg.glitch_sigma * channel.vertical_innovation_sigma_m() + cfg.position_gate_m
-        if residual_m <= gate_m and abs(dp[2]) <= gate_d_m:
+        if residual_m <= gate_m and abs(dp[2]) <= gate_d_m and not track.drifting:
             track.accepted()
             return "use"
         if track.reset_due(t_e, cfg.reset_rejections, cfg.position_reset_s):
@@ -1581,9 +1581,11 @@ class ObserverEngine:
         self.counters.position_rejected += 1
         self._log.warning(
             t_e,
-            f"GNSS position glitch at t={t_e:.3f}: {residual_m:.2f} m from the dead-reckoned "
-            f"position, gate {gate_m:.2f} m; height {dp[2]:+.2f} m off, gate {gate_d_m:.2f} m "
-            f"(quality {int(fix.quality)}); position not used",
+            track.drift_text(t_e)
+            if track.drifting
+            else f"GNSS position glitch at t={t_e:.3f}: {residual_m:.2f} m from the "
+            f"dead-reckoned position, gate {gate_m:.2f} m; height {dp[2]:+.2f} m off, gate "
+            f"{gate_d_m:.2f} m (quality {int(fix.quality)}); position not used",
             "glitch",
         )
         return "reject"
