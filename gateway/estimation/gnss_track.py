@@ -77,24 +77,25 @@ class GnssTrack:
             miss_e = p_ne_m[1] - (last[2] + 0.5 * (last[4] + ve) * dt)
             # the trapezoid's error in a turn is u dt (w dt)^2 / 12 (3 cm at 1 Hz, 3 m/s,
             # 0.33 rad/s); a quarter of the velocity change over the step bounds it
-            curve_m = 0.25 * math.hypot(vn - last[3], ve - last[4]) * dt
+            dv_mps = math.hypot(vn - last[3], ve - last[4])
+            speed_mps, speed_last_mps = math.hypot(vn, ve), math.hypot(last[3], last[4])
+            curve_m = 0.25 * dv_mps * dt
             bound_m = self.jump_sigma * math.sqrt(2.0) * sigma_h_m + self.jump_floor_m
             if math.hypot(miss_n, miss_e) > bound_m + curve_m:
                 self.jumped_at_s = t_s
                 self._steps.clear()
             elif new_solution:
                 pass  # the step from the last solution to this one carries their difference
-            elif min(math.hypot(vn, ve), math.hypot(last[3], last[4])) < DRIFT_MIN_SPEED_MPS:
+            elif min(speed_mps, speed_last_mps) < DRIFT_MIN_SPEED_MPS:
                 self._steps.clear()
             else:
                 # the trapezoid's miss in the turn itself (twice), and the step's noise as
                 # 1-sigma: a mast swaying near 1 Hz (omega 2 pi) moves the velocity by dv in
                 # a step, and the trapezoid misses by dv dt (omega dt) / 12, at most a quarter
                 # of dv dt (two samples 1 s apart miss their mean by decimetres either way)
-                noise_m = math.hypot(vn - last[3], ve - last[4]) * dt * min(0.25, 0.5 * dt)
+                noise_m = dv_mps * dt * min(0.25, 0.5 * dt)
                 turn_rad = math.atan2(last[3] * ve - last[4] * vn, last[3] * vn + last[4] * ve)
-                speed = 0.5 * (math.hypot(vn, ve) + math.hypot(last[3], last[4]))
-                turn_m = speed * dt * turn_rad**2 / 6.0
+                turn_m = 0.5 * (speed_mps + speed_last_mps) * dt * turn_rad**2 / 6.0
                 self._steps.append((t_s, miss_n, miss_e, turn_m, noise_m * noise_m))
         else:
             self._steps.clear()

@@ -556,9 +556,7 @@ class EkfEngine:
         c_e = row[ROW_C].reshape(3, 3)
         measurements: list[Measurement] = []
         if sig_pos is not None and p_ant is not None and self._track.drifting:
-            self.counters.position_rejected += 1
-            self._track.rejected(t_e)
-            self._log.warning(t_e, self._track.drift_text(t_e), "glitch")
+            self._reject_position(t_e, self._track.drift_text(t_e))
         elif sig_pos is not None and p_ant is not None:
             measurements.append(
                 fuse_position(
@@ -592,14 +590,11 @@ class EkfEngine:
                     self._t_pos_epoch_s = t_e
                     self._track.accepted()
                 else:
-                    self.counters.position_rejected += 1
-                    self._track.rejected(t_e)
-                    self._log.warning(
+                    self._reject_position(
                         t_e,
                         f"GNSS position glitch at t={t_e:.3f}: beyond the filter's "
                         f"{self.cfg.gate_sigma:g}-sigma gate (quality {int(fix.quality)}); "
                         "position not used",
-                        "glitch",
                     )
             elif not ok and m.name == "velocity":
                 self.counters.velocity_rejected += 1
@@ -1025,6 +1020,12 @@ class EkfEngine:
         if self._frame is None:
             self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
         return np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
+
+    def _reject_position(self, t_e: float, why: str) -> None:
+        """The fix's position is not used: counted, told to the track, logged (rate-limited)."""
+        self.counters.position_rejected += 1
+        self._track.rejected(t_e)
+        self._log.warning(t_e, why, "glitch")
 
     def _position_sigma(self, fix: GnssFix) -> Array | None:
         """Position 1-sigma NED (3,) of the fix (:func:`fix_position_sigma_m`: GST when
