@@ -145,3 +145,18 @@ def test_hdt_aligns_and_corrects_heading_at_standstill() -> None:
     sol = engine.solution()
     assert sol.mode.name == "NAVIGATING"
     assert abs(_yaw_err_deg(motion, out[-1][0], sol)) < 0.5
+
+
+def test_a_working_hdt_at_20_hz_with_latency_is_never_rejected() -> None:
+    """20 Hz HDT, 70 ms late: after the alignment the next epochs' platform heading in the
+    history predates it (the HDT screen rejected every HDT after that, 20 deg off)."""
+    motion = Motion([*START, Segment(20.0, yaw_rate_rps=0.2), Segment(20.0)], yaw0_rad=2.5)
+    engine = ObserverEngine(ObserverConfig())
+    out = solutions(
+        engine,
+        imu_stream(motion, noise_g_rps=0.002, seed=3),
+        gnss_stream(motion, rate_hz=20.0, latency_s=0.07, hdt=True),
+        every=41,
+    )
+    assert engine.counters.hdt_rejected == 0
+    assert max(abs(_yaw_err_deg(motion, t, s)) for t, s in out if t > 10.0) < 0.3

@@ -68,6 +68,7 @@ from gateway.estimation.lever_arm import (
 )
 from gateway.estimation.observer.accel_bias_filter import AccelBiasFilter, BiasFilterNoise
 from gateway.estimation.observer.coast_budget import CoastBudget
+from gateway.estimation.observer.hdt_screen import HdtScreen
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.position_channel import PositionChannel
@@ -152,6 +153,7 @@ class ObserverCounters:
     position_resets: int = 0  # rejected for ``position_reset_s``: reset to the GNSS
     late_epochs: int = 0  # epoch older than the IMU history: dropped
     bias_changes: int = 0  # x/y biases re-opened: a change beyond their in-run model
+    hdt_rejected: int = 0  # HDT off the gyro's turn since the last one used: a jump
 
 
 class ObserverEngine:
@@ -170,6 +172,7 @@ class ObserverEngine:
         self.cfg = cfg
         self._l_ant_f = tuple(float(x) for x in cfg.antenna_lever_arm_m)
         self._heading = HeadingChannel(cfg)
+        self._hdt_screen = HdtScreen(cfg)  # HDT's jumps against the gyro's turn
         self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._observer: TereshkovObserver | None = None
         # tilt alignment
@@ -333,6 +336,8 @@ class ObserverEngine:
         self._sigma_level_rad = math.hypot(self._sigma_level_rad, sigma_tilt)
         long = dt > MAX_IMU_STEP_S
         self._heading.bridged(r[2], restart=long)
+        if long:
+            self._hdt_screen.restart(sample.t)
         if self._ba_filter is not None:
             self._ba_filter.bridge(sample.t, self._observer.c_bp9, sigma_tilt, new_chain=long)
         if long:
@@ -1275,9 +1280,11 @@ class ObserverEngine:
             self._ba_filter.rotate(phi_rad)
 
     def _turn_platform(self, dpsi_rad: float) -> None:
-        """C <- Rz(dpsi) C (a heading step): the accel-bias filter's tilt error turns with it."""
-        assert self._observer is not None
+        """C <- Rz(dpsi) C (a heading step): the accel-bias filter's tilt error turns with it;
+        the HDT screen's gyro heading breaks (the history's rows up to now keep the old)."""
+        assert self._observer is not None and self._t_s is not None
         self._observer.rotate_about_vertical(dpsi_rad)
+        self._hdt_screen.restart(self._t_s)
         if self._ba_filter is not None:
             self._ba_filter.rotate_about_vertical(dpsi_rad)
 
@@ -1362,7 +1369,8 @@ class ObserverEngine:
         forward unless the vehicle left its last rest reversing (:meth:`_velocity_along_body_x`:
         taken as forward, backing out of a shed aligned 180 deg off and sent that heading,
         NAVIGATING, for as long as it reversed). The heading channel's bias KF learns under
-        the same gates as the observer.
+        the same gates as the observer. An HDT off the gyro's turn since the last one used is
+        not used (:mod:`gateway.estimation.observer.hdt_screen`).
         """
         obs = self._observer
         assert obs is not None
@@ -1380,6 +1388,14 @@ class ObserverEngine:
             self._heading.aligned(sigma)
             self._heading.reversing = self._forward is False and hdt_rad is None
             return
+        screen = self._hdt_screen
+        if hdt_rad is not None and not screen.screen(
+            t_e, row[_PSI], hdt_rad, row[_HC], self._heading.kf.sigma_rps,
+            self._heading.sigma_psi_rad,
+        ):  # fmt: skip
+            self.counters.hdt_rejected += 1
+            self._log.warning(t_e, screen.text(t_e), "hdt")
+            hdt_rad = None
         ref = self._heading.select_reference(
             t_e, row[_PSI], cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
         )
