@@ -219,6 +219,9 @@ class EkfEngine:
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
         self._last_quality: FixQuality | None = None
+        #: the last GNSS velocity passed the filter's gate: a drift of the receiver's
+        #: positions off its velocity is then the positions' (else the velocity's)
+        self._velocity_used = True
         self._t_accepted_rx_s: float | None = None  # receive time of the last accepted fix
         self._t_pos_epoch_s: float | None = None  # epoch of the last accepted position
         self._track = GnssTrack()  # the receiver's own track: glitch or filter off?
@@ -555,19 +558,12 @@ class EkfEngine:
             return
         c_e = row[ROW_C].reshape(3, 3)
         measurements: list[Measurement] = []
-        if sig_pos is not None and p_ant is not None and self._track.drifting:
-            self._reject_position(t_e, self._track.drift_text(t_e))
-        elif sig_pos is not None and p_ant is not None:
-            measurements.append(
-                fuse_position(
-                    row[ROW_P],
-                    c_e,
-                    self._l_imu_ant_b,
-                    p_ant,
-                    np.sqrt(self._fix_var_white_m2),
-                    self._fix_err_ned_m,
-                )
-            )
+        if sig_pos is not None and p_ant is not None:
+            # a drift while the filter rejects the velocity is the velocity's, not theirs
+            if self._track.drifting and self._velocity_used:
+                self._reject_position(t_e, self._track.drift_text(t_e))
+            else:
+                measurements.append(self._fuse_fix_position(row, c_e, p_ant))
         vel = self._gnss_velocity(fix)
         if vel is not None:
             w_e, sig_lever = self._lever_rate(t_e)
@@ -596,8 +592,9 @@ class EkfEngine:
                         f"{self.cfg.gate_sigma:g}-sigma gate (quality {int(fix.quality)}); "
                         "position not used",
                     )
-            elif not ok and m.name == "velocity":
-                self.counters.velocity_rejected += 1
+            elif m.name == "velocity":
+                self._velocity_used = ok
+                self.counters.velocity_rejected += not ok
             elif not ok:
                 self.counters.heading_rejected += 1
         if accepted:
@@ -1020,6 +1017,17 @@ class EkfEngine:
         if self._frame is None:
             self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
         return np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
+
+    def _fuse_fix_position(self, row: Array, c_e: Array, p_ant: Array) -> Measurement:
+        """The fix's antenna position as a measurement of the state at its epoch (``row``)."""
+        return fuse_position(
+            row[ROW_P],
+            c_e,
+            self._l_imu_ant_b,
+            p_ant,
+            np.sqrt(self._fix_var_white_m2),
+            self._fix_err_ned_m,
+        )
 
     def _reject_position(self, t_e: float, why: str) -> None:
         """The fix's position is not used: counted, told to the track, logged (rate-limited)."""
