@@ -291,20 +291,24 @@ def test_a_dual_antenna_heading_5_deg_off_is_not_followed(
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
-def test_a_speed_biased_0_3_m_s_with_the_positions_right_is_the_velocitys_fault(
-    tmp_path: Path, engine: Engine
+@pytest.mark.parametrize(("dsog_mps", "dcog_deg"), [(0.3, 0.0), (0.0, 3.0)])
+def test_a_biased_velocity_with_the_positions_right_is_the_velocitys_fault(
+    tmp_path: Path, engine: Engine, dsog_mps: float, dcog_deg: float
 ) -> None:
-    """RMC speed 0.3 m/s high for 20 s, the RTK positions right: the positions leave the
-    receiver's velocity as a drifting solution's do. The EKF's gate rejects that velocity
-    against its own state; it took the drift as the positions' all the same, dead reckoned
-    on the biased speed and sent positions 6 m off, some while COASTING (field seed 3).
-    A drift while the filter rejects the velocity is the velocity's: the EKF stays within
-    centimetres. The observer, which takes its velocity from the receiver, says DEGRADED."""
+    """RMC speed 0.3 m/s high, or its course 3 deg off, for 20 s, the RTK positions right:
+    the positions leave the receiver's velocity as a drifting solution's do. The EKF's gate
+    rejects that velocity against its own state; it took the drift as the positions' all
+    the same, dead reckoned on the biased velocity and sent positions 2.5-6 m off, some
+    while COASTING (field seed 3). A drift while the filter rejects velocities is theirs:
+    the EKF stays within centimetres. The observer, which takes its velocity from the
+    receiver, says DEGRADED."""
     span = (70.0, 90.0)
     imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
     fixes = [
-        dataclasses.replace(f, sog_mps=f.sog_mps + 0.3)
-        if f.sog_mps is not None and span[0] <= motion_time(f.t) < span[1]
+        dataclasses.replace(
+            f, sog_mps=f.sog_mps + dsog_mps, cog_rad=f.cog_rad + np.radians(dcog_deg)
+        )
+        if f.sog_mps is not None and f.cog_rad is not None and span[0] <= motion_time(f.t) < span[1]
         else f
         for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
     ]

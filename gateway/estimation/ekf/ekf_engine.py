@@ -94,7 +94,7 @@ from gateway.estimation.engine_base import (
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
-from gateway.estimation.gnss_track import GnssTrack
+from gateway.estimation.gnss_track import DRIFT_WINDOW_S, GnssTrack
 from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
@@ -219,9 +219,10 @@ class EkfEngine:
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
         self._last_quality: FixQuality | None = None
-        #: the last GNSS velocity passed the filter's gate: a drift of the receiver's
-        #: positions off its velocity is then the positions' (else the velocity's)
-        self._velocity_used = True
+        #: epoch time of the last GNSS velocity the filter's gate rejected: a drift of the
+        #: receiver's positions off its velocity with none rejected over the drift window is
+        #: the positions'; with some, the velocity's
+        self._t_velocity_rejected_s: float | None = None
         self._t_accepted_rx_s: float | None = None  # receive time of the last accepted fix
         self._t_pos_epoch_s: float | None = None  # epoch of the last accepted position
         self._track = GnssTrack()  # the receiver's own track: glitch or filter off?
@@ -559,8 +560,7 @@ class EkfEngine:
         c_e = row[ROW_C].reshape(3, 3)
         measurements: list[Measurement] = []
         if sig_pos is not None and p_ant is not None:
-            # a drift while the filter rejects the velocity is the velocity's, not theirs
-            if self._track.drifting and self._velocity_used:
+            if self._track.drifting and not self._velocity_suspect(t_e):
                 self._reject_position(t_e, self._track.drift_text(t_e))
             else:
                 measurements.append(self._fuse_fix_position(row, c_e, p_ant))
@@ -592,9 +592,9 @@ class EkfEngine:
                         f"{self.cfg.gate_sigma:g}-sigma gate (quality {int(fix.quality)}); "
                         "position not used",
                     )
-            elif m.name == "velocity":
-                self._velocity_used = ok
-                self.counters.velocity_rejected += not ok
+            elif not ok and m.name == "velocity":
+                self.counters.velocity_rejected += 1
+                self._t_velocity_rejected_s = t_e
             elif not ok:
                 self.counters.heading_rejected += 1
         if accepted:
@@ -1017,6 +1017,14 @@ class EkfEngine:
         if self._frame is None:
             self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
         return np.array(self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m))
+
+    def _velocity_suspect(self, t_e: float) -> bool:
+        """Did the filter's gate reject a GNSS velocity within the drift window before
+        ``t_e``? A drift of the positions off the velocity is then the velocity's: RMC
+        speed 0.3 m/s high (or its course 3 deg off) with the positions right is rejected
+        against the state, while a drifting solution's right velocity never is."""
+        t_rej = self._t_velocity_rejected_s
+        return t_rej is not None and t_e - t_rej <= DRIFT_WINDOW_S
 
     def _fuse_fix_position(self, row: Array, c_e: Array, p_ant: Array) -> Measurement:
         """The fix's antenna position as a measurement of the state at its epoch (``row``)."""
