@@ -50,9 +50,11 @@ class GnssTrack:
     jumped_at_s: float | None = None  # epoch time of the last jump
     rejecting_since_s: float | None = None  # epoch time the engine began to reject positions
     rejections: int = 0  # consecutive positions the engine rejected
+    spell_jump_s: float | None = None  # the jump the run of rejections began with, if one
+    taken_until_s: float | None = None  # a jumped track was taken: in doubt until then
     drifting: bool = False  # the last epoch's positions left the receiver's own velocity
     drift_m: float = 0.0  # by this much over the drift window
-    _last: tuple[float, float, float, float, float] | None = None  # t, n, e, vn, ve
+    _last: tuple[float, float, float, float, float, float] | None = None  # t, n, e, vn, ve, sigma
     _heights: tuple[tuple[float, float], ...] = ()  # (t, down m) of the last two epochs
     #: (t, dt, north, east, turn bound, noise variance) of each step's miss of its velocity
     _steps: deque[tuple[float, float, float, float, float, float]] = field(default_factory=deque)
@@ -89,7 +91,10 @@ class GnssTrack:
             dv_mps = math.hypot(vn - last[3], ve - last[4])
             speed_mps, speed_last_mps = math.hypot(vn, ve), math.hypot(last[3], last[4])
             curve_m = 0.25 * dv_mps * dt
-            bound_m = self.jump_sigma * math.sqrt(2.0) * sigma_h_m + self.jump_floor_m
+            # the two positions' errors: a new solution's differs from the last one's (RTK
+            # fixed after float: decimetres, no jump), one solution's barely
+            sigma_step_m = math.hypot(sigma_h_m, last[5])
+            bound_m = self.jump_sigma * sigma_step_m + self.jump_floor_m
             # Steps not added (a jump, a new solution, a slow step) leave the window as it
             # is: each step's miss is its own evidence, so a drift seen before a headland or
             # a glitch is still a drift after it (cleared, it took 8.5 s to see it again,
@@ -106,7 +111,7 @@ class GnssTrack:
                 turn_m = 0.5 * (speed_mps + speed_last_mps) * dt * turn_rad**2 / 6.0
                 self._steps.append((t_s, dt, miss_n, miss_e, turn_m, noise_m * noise_m))
                 self._window_s += dt
-        self._last = (t_s, p_ne_m[0], p_ne_m[1], vn, ve)
+        self._last = (t_s, p_ne_m[0], p_ne_m[1], vn, ve, sigma_h_m)
         self._test_drift(t_s, sigma_h_m)
 
     def _test_drift(self, t_s: float, sigma_h_m: float) -> None:
@@ -140,6 +145,13 @@ class GnssTrack:
             "positions not used"
         )
 
+    def away_text(self, t_s: float) -> str:
+        """The warning for a position rejected because the track has not jumped back."""
+        return (
+            f"GNSS position at t={t_s:.3f} is on a track that jumped at t="
+            f"{self.spell_jump_s or 0.0:.3f} and has not jumped back; position not used"
+        )
+
     def _add_height(self, t_s: float, down_m: float | None, sigma_d_m: float) -> None:
         """NMEA has no vertical velocity: the height is extrapolated from the last two. The
         second difference of three heights has sqrt(6) sigma of one; the vehicle's vertical
@@ -165,11 +177,20 @@ class GnssTrack:
         """The engine rejected the position of epoch ``t_s``."""
         if self.rejecting_since_s is None:
             self.rejecting_since_s = t_s
+            self.spell_jump_s = self.jumped_at_s if self.jumped_since(t_s) else None
         self.rejections += 1
 
     def accepted(self) -> None:
         """The engine used a position (or reset to one): the run of rejections ends."""
-        self.rejecting_since_s, self.rejections = None, 0
+        self.rejecting_since_s, self.rejections, self.spell_jump_s = None, 0, None
+
+    @property
+    def away(self) -> bool:
+        """Are the engine's rejections those of a track that jumped away and has not jumped
+        back? Its positions are then the jumped track's however close the engine's dead
+        reckoning (whose gate widens as it goes on) lets them come: 0.3 m off 12 s after
+        the jump was inside the observer's gate, and it sent that, NAVIGATING."""
+        return self.spell_jump_s is not None and self.jumped_at_s == self.spell_jump_s
 
     def reset_due(self, t_s: float, reset_rejections: int, position_reset_s: float) -> bool:
         """Should the engine take the GNSS position at ``t_s`` however far it is? After
@@ -182,4 +203,15 @@ class GnssTrack:
             return False
         if not self.jumped_since(since):
             return self.rejections >= reset_rejections
-        return t_s - since >= position_reset_s
+        if t_s - since < position_reset_s:
+            return False
+        self.taken_until_s = t_s + position_reset_s
+        return True
+
+    def doubtful(self, t_s: float) -> bool:
+        """Are the positions in doubt at ``t_s``: being rejected, or those of a jumped track
+        taken less than ``position_reset_s`` ago? A wrong fix held past the rejections is
+        taken as a new base station's would be; it may yet jump back (a 90 s wrong fix went
+        out 31 cm off, NAVIGATING, for the 30 s after it was taken)."""
+        until = self.taken_until_s
+        return self.rejecting_since_s is not None or (until is not None and t_s < until)

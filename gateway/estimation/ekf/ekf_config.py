@@ -75,7 +75,7 @@ class EkfConfig:
     gate_sigma: float = 5.0  # NIS gate: chi-square tail of a 5-sigma normal event per dof
     reset_outage_s: float = 30.0  # no accepted position this long: re-initialise from GNSS
     reset_rejections: int = 20  # or this many positions of a continuous GNSS track rejected
-    position_reset_s: float = 10.0  # or rejected this long after a GNSS jump (it moved, reset)
+    position_reset_s: float = 60.0  # or rejected this long after a GNSS jump (it moved, reset)
 
     # --- land-vehicle pseudo-measurements ---
     nhc_sigma_mps: float = 0.05  # reference-point lateral/vertical body velocity 1-sigma

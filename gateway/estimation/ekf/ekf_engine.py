@@ -551,7 +551,7 @@ class EkfEngine:
             )  # fmt: skip
         since = t_e - (self._t_pos_epoch_s if self._t_pos_epoch_s is not None else t_e)
         if sig_pos is not None and (
-            since > self.cfg.reset_outage_s
+            (since > self.cfg.reset_outage_s and self._track.rejecting_since_s is None)
             or self._imu.timing.gaps != self._imu_gaps_at_reset
             or self._track.reset_due(t_e, self.cfg.reset_rejections, self.cfg.position_reset_s)
         ):
@@ -562,6 +562,8 @@ class EkfEngine:
         if sig_pos is not None and p_ant is not None:
             if self._track.drifting and not self._velocity_suspect(t_e):
                 self._reject_position(t_e, self._track.drift_text(t_e))
+            elif self._track.away:
+                self._reject_position(t_e, self._track.away_text(t_e))
             else:
                 measurements.append(self._fuse_fix_position(row, c_e, p_ant))
         vel = self._gnss_velocity(fix)
@@ -1222,7 +1224,7 @@ class EkfEngine:
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
             imu_gap=self._imu.timing.degraded(),
-            gnss_glitch=self._track.rejecting_since_s is not None,
+            gnss_glitch=self._t_s is not None and self._track.doubtful(self._t_s),
         )
 
 

@@ -113,7 +113,7 @@ class ObserverConfig:
     # ambiguity, multipath under a tree line) is beyond it; with 0.5 m it was followed.
     position_gate_m: float = 0.1
     reset_rejections: int = 20  # positions of a continuous GNSS track rejected: reset to it
-    position_reset_s: float = 10.0  # rejected this long after a GNSS jump: it moved, reset
+    position_reset_s: float = 60.0  # rejected this long after a GNSS jump: it moved, reset
 
     # --- convergence flags and roll/pitch sigma ---
     gyro_bias_sigma0_dps: float = 0.3  # x/y gyro bias 1-sigma before learning

@@ -1582,7 +1582,8 @@ class ObserverEngine:
         gate_m = cfg.glitch_sigma * channel.horizontal_innovation_sigma_m() + cfg.position_gate_m
         residual_m = channel.horizontal_innovation_m(dp)
         gate_d_m = cfg.glitch_sigma * channel.vertical_innovation_sigma_m() + cfg.position_gate_m
-        if residual_m <= gate_m and abs(dp[2]) <= gate_d_m and not track.drifting:
+        within = residual_m <= gate_m and abs(dp[2]) <= gate_d_m
+        if within and not track.drifting and not track.away:
             track.accepted()
             return "use"
         if track.reset_due(t_e, cfg.reset_rejections, cfg.position_reset_s):
@@ -1599,6 +1600,8 @@ class ObserverEngine:
             t_e,
             track.drift_text(t_e)
             if track.drifting
+            else track.away_text(t_e)
+            if within
             else f"GNSS position glitch at t={t_e:.3f}: {residual_m:.2f} m from the "
             f"dead-reckoned position, gate {gate_m:.2f} m; height {dp[2]:+.2f} m off, gate "
             f"{gate_d_m:.2f} m (quality {int(fix.quality)}); position not used",
@@ -1700,7 +1703,7 @@ class ObserverEngine:
             fix=self._last_fix,
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
             imu_gap=self._imu.timing.degraded(),
-            gnss_glitch=self._track.rejecting_since_s is not None,
+            gnss_glitch=self._t_s is not None and self._track.doubtful(self._t_s),
         )
 
     def _sigma_bg_rps(self) -> float:
