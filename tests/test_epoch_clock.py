@@ -115,3 +115,30 @@ def test_a_receivers_utc_ahead_for_a_while_is_placed_by_its_arrival_on_a_utc_hos
     assert np.max(np.abs(t_e[50:100] - true[50:100])) < 0.01  # the serial jitter's spread
     assert np.array_equal(t_e[:50], true[:50]) and np.array_equal(t_e[100:], true[100:])
     assert clock.host_follows_utc is True
+
+
+@pytest.mark.parametrize("frozen", [False, True])
+def test_a_receivers_utc_behind_or_standing_still_is_placed_by_its_arrival_on_a_utc_host(
+    frozen: bool,
+) -> None:
+    """Five seconds of the receiver's UTC 1 s behind, or stuck at one value: not after the
+    epoch before, impossible for a new epoch, so the stamp is wrong, not the data. Placed by
+    arrival (both engines had fused 1 s old velocities in a turn: 1.3 m off); the epochs
+    after at their UTC again. Epochs that arrive late with their UTC advancing (a busy
+    host, here 0.6 s late) keep it."""
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.05)
+    stream = fixes(host_minus_utc_s=0.0, latency_s=0.068, jitter_s=0.01, n=250)
+    stuck = stream[50].t_utc
+    assert stuck is not None
+    glitched = [
+        dataclasses.replace(f, t_utc=stuck if frozen else f.t_utc - 1.0)
+        if 50 <= k < 100 and f.t_utc
+        else dataclasses.replace(f, t=f.t + 0.6)
+        if 150 <= k < 160
+        else f
+        for k, f in enumerate(stream)
+    ]
+    t_e = epochs(clock, glitched)
+    true = np.array(utc_times(stream))
+    assert np.max(np.abs(t_e[50:100] - true[50:100])) < 0.01  # the serial jitter's spread
+    assert np.array_equal(t_e[:50], true[:50]) and np.array_equal(t_e[100:], true[100:])

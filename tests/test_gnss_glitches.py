@@ -151,7 +151,9 @@ def test_a_wrong_fix_held_is_never_sent_as_navigating(
 def test_epochs_older_than_the_history_are_counted_and_logged(
     tmp_path: Path, caplog: pytest.LogCaptureFixture, engine: Engine
 ) -> None:
-    """Sentence UTC 5 s behind for 10 s: the fixes cannot be used; say so, once per 10 s."""
+    """Sentence UTC 5 s behind for 10 s on a free-running host (``receive``: the epochs are
+    placed by their UTC and the least delay): the fixes cannot be used; say so, once per
+    10 s. (On a host that follows UTC they are placed by their arrival: epoch_clock.)"""
     span = (70.0, 80.0)
     fixes = [
         dataclasses.replace(f, t_utc=f.t_utc - 5.0)
@@ -161,14 +163,15 @@ def test_epochs_older_than_the_history_are_counted_and_logged(
     ]
     imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
     with caplog.at_level(logging.WARNING):
-        core = run(tmp_path / "out.log", engine, imu, fixes)
+        core = run(tmp_path / "out.log", engine, imu, fixes, epoch_time=EpochTime.RECEIVE)
     assert isinstance(core.engine, (ObserverEngine, EkfEngine))
     assert core.engine.counters.late_epochs >= 90
     late = [
         r.getMessage() for r in caplog.records if "older than the IMU history" in r.getMessage()
     ]
     assert len(late) == 1, late  # one line per 10 s of epoch time, not one per epoch
-    assert f"epoch at t={T0_S + span[0] - 5.0:.3f} dropped" in late[0]
+    t_late = float(late[0].split("epoch at t=")[1].split(" ")[0])
+    assert t_late == pytest.approx(T0_S + span[0] - 5.0, abs=0.1)  # the first of them
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
@@ -243,9 +246,11 @@ def test_the_receivers_utc_off_by_a_second_for_a_while(
     host clock following UTC (epoch_time auto, the default). Ahead: the epochs arrived before
     their stamp, impossible on this host, so they are placed by their arrival: no effect
     (before, the epoch clock turned to ``receive`` and placed the next 10 s of epochs 1 s
-    early: 3-4 m off, NAVIGATING). Behind: the receiver's time went back, a jump of its
-    track; the positions are rejected as glitches, DEGRADED (before, both engines reset to
-    them after 2 s as to a continuous track: 3 m off, NAVIGATING)."""
+    early: 3-4 m off, NAVIGATING). Behind: the receiver's time went back, impossible for a
+    new epoch, so they are placed by their arrival too (before, both engines reset to them
+    after 2 s as to a continuous track: 3 m off, NAVIGATING; then, taken as a jump of the
+    track, they fused 1 s old velocities in a turn: 1.3 m off, COASTING without DEGRADED
+    on steep-turns seed 2)."""
     span = (70.0, 75.0)
     imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
     fixes = [
@@ -258,13 +263,8 @@ def test_the_receivers_utc_off_by_a_second_for_a_while(
     run(log, engine, imu, fixes, epoch_time=EpochTime.AUTO)
     errors = [(t, e) for t, e in position_errors(log) if t >= 40.0]
     told = [t for t, d in status(log) if Mode(d[2]) in (Mode.DEGRADED, Mode.FAULT)]
-    if shift_s > 0.0:
-        assert max(e for _, e in errors) < 0.05
-        assert not told
-    else:
-        untold = [(t, e) for t, e in errors if e > 0.1 and min(abs(np.array(told) - t)) > 0.1]
-        assert not untold, untold[:5]
-        assert max(e for t, e in errors if t >= span[1] + 12.0) < 0.05
+    assert max(e for _, e in errors) < 0.05
+    assert not told
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])

@@ -50,6 +50,7 @@ class EpochClock:
         self.mode = mode
         self.receiver_latency_s = receiver_latency_s
         self._delays: deque[float] = deque(maxlen=DELAY_WINDOW)
+        self._last_epoch_s: float | None = None  # the latest epoch placed on a UTC host
 
     @property
     def host_follows_utc(self) -> bool | None:
@@ -72,21 +73,31 @@ class EpochClock:
     def epoch_time(self, fix: GnssFix) -> float:
         """Epoch instant of ``fix`` on the host clock, s.
 
-        On a host that follows UTC, an epoch that arrived before its UTC (the receiver's
-        clock ahead for a while) is placed by its arrival, less the least possible delay:
-        its data are right, its time stamp is not. Five seconds of UTC 1 s ahead (field seed
-        1, moving) had turned ``auto`` to ``receive`` with that delay as the least for the
-        window's 10 s after them: epochs 1 s early, positions 3-4 m off, NAVIGATING."""
+        On a host that follows UTC, an epoch whose UTC cannot be right is placed by its
+        arrival, less the least possible delay: its data are right, its time stamp is not.
+        - It arrived before its UTC (the receiver's clock ahead for a while). Five seconds of
+          UTC 1 s ahead (field seed 1, moving) had turned ``auto`` to ``receive`` with that
+          delay as the least for the window's 10 s after them: epochs 1 s early, positions
+          3-4 m off, NAVIGATING.
+        - Its UTC is not after the last epoch's (the clock went back, or stands still). Five
+          seconds of UTC 1 s behind had both engines fuse 1 s old velocities in a turn
+          (steep-turns seed 2): 1.3 m off, COASTING without DEGRADED for 0.3 s.
+        Late arrivals with their UTC advancing (a busy host) keep their UTC."""
         if fix.t_utc is None:
             return fix.t - self.receiver_latency_s
         delay_s = fix.t - fix.t_utc
         self._delays.append(delay_s)
         least_possible_s = self._least_possible_delay()
-        if self._follows_utc(least_possible_s):
-            if delay_s >= SYNCED_DELAY_S[0] or least_possible_s is None:
-                return fix.t_utc
-            return fix.t - least_possible_s
-        return fix.t_utc + min(self._delays) - self.receiver_latency_s
+        if not self._follows_utc(least_possible_s):
+            return fix.t_utc + min(self._delays) - self.receiver_latency_s
+        last = self._last_epoch_s
+        t_e = fix.t_utc
+        if least_possible_s is not None and (
+            delay_s < SYNCED_DELAY_S[0] or (last is not None and fix.t_utc <= last)
+        ):
+            t_e = fix.t - least_possible_s
+        self._last_epoch_s = t_e if last is None else max(last, t_e)
+        return t_e
 
 
 def late_epoch_text(t_e: float, oldest_s: float) -> str:
