@@ -199,7 +199,7 @@ class ObserverEngine:
         self._v_ned_mps = [0.0, 0.0, 0.0]
         self._nav_valid = False
         self._frame: LocalFrame | None = None  # local NED around the first fix
-        self._t_pos_epoch_s: float | None = None  # last epoch whose position was used
+        self._t_height_epoch_s: float | None = None  # last epoch whose height was used
         self._position = PositionChannel(cfg.gnss_error_correlation_s, cfg.gnss_white_share)
         self._t_position_s = 0.0  # epoch time the position channel was predicted to
         self._l_imu_f = tuple(float(x) for x in cfg.imu_lever_arm_m)
@@ -1458,7 +1458,7 @@ class ObserverEngine:
             self._p_ned_m = [p_ref[0] + vn * age, p_ref[1] + ve * age, p_ref[2]]
             channel.reset()
             self._nav_valid = True
-            self._t_pos_epoch_s = self._t_position_s = t_e
+            self._t_height_epoch_s = self._t_position_s = t_e
             self._lever_anchor = None
             self._settle_lever(self._platform(), velocity_reset=True)
             return
@@ -1471,14 +1471,19 @@ class ObserverEngine:
         ]
         dp = [p_ref[i] - (p[i] - 0.5 * (v[i] + v_e[i]) * age) for i in range(3)]
         self._predict_position(fix, t_e)
-        interval_s = min(t_e - (self._t_pos_epoch_s or t_e), self.cfg.max_gnss_interval_s)
+        interval_s = min(t_e - (self._t_height_epoch_s or t_e), self.cfg.max_gnss_interval_s)
         verdict = self._gate_position(fix, t_e, dp)
+        # a position rejected for its horizontal part (a jump, a drift) whose height agrees:
+        # the height loop keeps it (open, the height ran 18 m off in a minute's rejections)
+        height_only = verdict == "reject" and abs(dp[2]) <= self._height_gate_m()
         corr = (0.0, 0.0, 0.0)
-        k_d = 0.0
+        k_d = min(1.0, 2.0 * interval_s / HEIGHT_LOOP_TAU_S) if interval_s > 0.0 else 1.0
         if verdict == "use":
             c_n, c_e = channel.update(dp)
-            k_d = min(1.0, 2.0 * interval_s / HEIGHT_LOOP_TAU_S) if interval_s > 0.0 else 1.0
             corr = (c_n, c_e, k_d * dp[2])
+        elif height_only:
+            channel.height_taken()
+            corr = (0.0, 0.0, k_d * dp[2])
         elif verdict == "reset":
             channel.reset()
             corr, k_d = (dp[0], dp[1], dp[2]), 1.0
@@ -1495,8 +1500,8 @@ class ObserverEngine:
             v[i] += dv[i]
         if v_ref_ne is not None:
             self._settle_lever(self._platform(), velocity_reset=True)
-        if verdict != "reject":
-            self._t_pos_epoch_s = t_e
+        if verdict != "reject" or height_only:
+            self._t_height_epoch_s = t_e
         learn = verdict == "use" and fix.quality == FixQuality.RTK_FIXED and interval_s > 0.0
         self._learn_accel_bias_z(dv[2] if learn and v_ref_ne else None, interval_s, c_bn)
 
@@ -1562,6 +1567,11 @@ class ObserverEngine:
         sigma_a = GRAVITY_MPS2 * self._sigma_tilt_rad(0.0)
         self._position.predict(interval_s, sigma_v * interval_s + 0.5 * sigma_a * interval_s**2)
 
+    def _height_gate_m(self) -> float:
+        """The height residual's gate: ``glitch_sigma`` x its 1-sigma + ``position_gate_m``."""
+        sigma_m = self._position.vertical_innovation_sigma_m()
+        return self.cfg.glitch_sigma * sigma_m + self.cfg.position_gate_m
+
     def _gate_position(
         self, fix: GnssFix, t_e: float, dp: list[float]
     ) -> Literal["use", "reject", "reset"]:
@@ -1581,7 +1591,7 @@ class ObserverEngine:
         cfg, track, channel = self.cfg, self._track, self._position
         gate_m = cfg.glitch_sigma * channel.horizontal_innovation_sigma_m() + cfg.position_gate_m
         residual_m = channel.horizontal_innovation_m(dp)
-        gate_d_m = cfg.glitch_sigma * channel.vertical_innovation_sigma_m() + cfg.position_gate_m
+        gate_d_m = self._height_gate_m()
         within = residual_m <= gate_m and abs(dp[2]) <= gate_d_m
         if within and not track.drifting and not track.away:
             track.accepted()

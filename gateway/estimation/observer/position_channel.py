@@ -121,7 +121,7 @@ class PositionChannel:
     def update(self, dz_ne_m: list[float]) -> tuple[float, float]:
         """Fuse the residuals fix - position (north, east); returns the position corrections."""
         ax = self._axes
-        self._height_taken()
+        self.height_taken()
         return (
             ax[0].update(dz_ne_m[0], self._var_w[0]),
             ax[1].update(dz_ne_m[1], self._var_w[1]),
@@ -135,9 +135,9 @@ class PositionChannel:
             a.p_pb = -self._var_b[i]
             a.p_bb = self._var_b[i]
             a.b_m = 0.0
-        self._height_taken()
+        self.height_taken()
 
-    def _height_taken(self) -> None:
+    def height_taken(self) -> None:
         """The height loop took the fix: its error settles towards the fix's."""
         settle = math.exp(-self._interval_s / HEIGHT_SETTLE_S)
         self._var_height = self._var_d + max(0.0, self._var_height - self._var_d) * settle
