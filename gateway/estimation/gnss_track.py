@@ -58,7 +58,7 @@ class GnssTrack:
     _heights: tuple[tuple[float, float], ...] = ()  # (t, down m) of the last two epochs
     #: (t, dt, north, east, turn bound, noise variance) of each step's miss of its velocity
     _steps: deque[tuple[float, float, float, float, float, float]] = field(default_factory=deque)
-    _window_s: float = 0.0  # the steps' dt summed: time driven in the window
+    _window_s: float = 0.0  # the steps' dt summed at the last test: time driven in the window
     _quality: int | None = None  # the solution the window's steps belong to
 
     def add(
@@ -76,7 +76,6 @@ class GnssTrack:
         new_solution = quality != self._quality
         if new_solution:
             self._steps.clear()  # a new solution: its error is not the last one's
-            self._window_s = 0.0
             self._quality = quality
         if last is not None and t_s < last[0]:
             # the receiver's UTC went back (a clock glitch): its epochs are not a track we
@@ -110,7 +109,6 @@ class GnssTrack:
                 turn_rad = math.atan2(last[3] * ve - last[4] * vn, last[3] * vn + last[4] * ve)
                 turn_m = 0.5 * (speed_mps + speed_last_mps) * dt * turn_rad**2 / 6.0
                 self._steps.append((t_s, dt, miss_n, miss_e, turn_m, noise_m * noise_m))
-                self._window_s += dt
         self._last = (t_s, p_ne_m[0], p_ne_m[1], vn, ve, sigma_h_m)
         self._test_drift(t_s, sigma_h_m)
 
@@ -120,12 +118,10 @@ class GnssTrack:
         (its wander over 10 s, its velocity's noise integrated) stay within centimetres. A
         fixed solution drifting 2 cm/s was followed 0.6 m, NAVIGATING, by both engines."""
         steps = self._steps
-        while steps and (
-            self._window_s > DRIFT_WINDOW_S + 1e-6 or steps[0][0] <= t_s - DRIFT_MAX_AGE_S
-        ):
-            self._window_s -= steps.popleft()[1]
-        if not steps:
-            self._window_s = 0.0  # no rounding carried on
+        window_s = sum(s[1] for s in steps)
+        while steps and (window_s > DRIFT_WINDOW_S + 1e-6 or steps[0][0] <= t_s - DRIFT_MAX_AGE_S):
+            window_s -= steps.popleft()[1]
+        self._window_s = window_s if steps else 0.0
         drift_n = sum(s[2] for s in steps)
         drift_e = sum(s[3] for s in steps)
         turn_m = sum(s[4] for s in steps)
@@ -141,8 +137,7 @@ class GnssTrack:
         return (
             f"GNSS positions at t={t_s:.3f} left the receiver's own velocity by "
             f"{self.drift_m:.2f} m over the last {self._window_s:.1f} s driven (a drifting "
-            "solution); "
-            "positions not used"
+            "solution); positions not used"
         )
 
     def away_text(self, t_s: float) -> str:

@@ -336,12 +336,11 @@ class ObserverEngine:
         self._sigma_level_rad = math.hypot(self._sigma_level_rad, sigma_tilt)
         long = dt > MAX_IMU_STEP_S
         self._heading.bridged(r[2], restart=long)
-        if long:
-            self._hdt_screen.restart(sample.t)
         if self._ba_filter is not None:
             self._ba_filter.bridge(sample.t, self._observer.c_bp9, sigma_tilt, new_chain=long)
         if long:
             self._gap_end_s = sample.t
+            self._hdt_screen.restart(sample.t)
 
     def _propagate_navigation(self, fpn: float, fpe: float, fpd: float, dt: float) -> None:
         """Reference-point velocity and position from a = f_p + g; f_p integral for eq. (3).
