@@ -22,7 +22,7 @@ from gateway.config.gateway_config import Engine, GatewayConfig, GnssSection, Ve
 from gateway.estimation.epoch_clock import EpochTime
 from gateway.estimation.geodesy import lla_to_ned
 from gateway.estimation.observer.observer_config import ObserverConfig
-from gateway.estimation.solution import LearnedState, Mode, navigation_mode
+from gateway.estimation.solution import LearnedState, Mode
 from gateway.fusion.engines import make_engine
 from gateway.fusion.fusion_core import RESTART_GAP_S, FusionCore
 from tests.kinematics import (
@@ -803,20 +803,3 @@ def test_a_large_bias_partly_learnt_before_a_restart_is_stated_as_it_shows(
     core = run(log, Engine.OBSERVER, without(imu, stall), fixes, observer=observer)
     assert core.stats.engine_restarts == 1
     assert attitude_within_stated(log, drive, (stall[1], math.inf)) > 1000
-
-
-@pytest.mark.parametrize("coasting", [False, True])
-def test_an_imu_gap_is_degraded_while_aligning_or_coasting_too(coasting: bool) -> None:
-    """Roll and pitch go out while ALIGNING and COASTING as well; a gap in the IMU stream
-    bridged under them makes them DEGRADED there too (an overloaded reader shedding 60% of
-    the stream sent roll 3 deg off, 1.75 deg stated, while ALIGNING)."""
-
-    def mode(imu_gap: bool) -> Mode:
-        return navigation_mode(
-            fault=False, aligned=coasting, coasting=coasting, imu_alarm=False, fix=None,
-            navigating_fix_qualities=(4,), imu_gap=imu_gap,
-        )  # fmt: skip
-
-    assert mode(imu_gap=True) is Mode.DEGRADED
-    quiet = mode(imu_gap=False)
-    assert quiet is (Mode.COASTING if coasting else Mode.ALIGNING)

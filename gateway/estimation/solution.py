@@ -202,21 +202,17 @@ def navigation_mode(
     gnss_glitch: bool = False,
 ) -> Mode:
     """The mode every engine reports, in order of precedence: FAULT (IMU data unusable),
-    DEGRADED for the IMU (its alarm, a recent gap in its stream: roll and pitch bridged over
-    it, which go out while aligning too), ALIGNING (no attitude/heading yet), COASTING (GNSS
-    velocity timed out, the dead-reckoned position still ``coast_within_accuracy``; DEGRADED
-    beyond), DEGRADED (GNSS positions rejected as glitches, or a fix quality outside
-    ``navigating_fix_qualities``), else NAVIGATING. An overloaded reader shedding 60% of
-    the IMU stream sent roll 3 deg off while ALIGNING, which no rule excuses."""
+    ALIGNING (no attitude/heading yet), COASTING (GNSS velocity timed out, the dead-reckoned
+    position still ``coast_within_accuracy``; DEGRADED beyond), DEGRADED (IMU alarm, a recent
+    gap in the IMU stream, GNSS positions rejected as glitches, or a fix quality outside
+    ``navigating_fix_qualities``), else NAVIGATING."""
     if fault:
         return Mode.FAULT
-    if imu_alarm or imu_gap:
-        return Mode.DEGRADED
     if not aligned:
         return Mode.ALIGNING
     if coasting:
         return Mode.COASTING if coast_within_accuracy else Mode.DEGRADED
-    if gnss_glitch:
+    if imu_alarm or imu_gap or gnss_glitch:
         return Mode.DEGRADED
     if fix is None or int(fix.quality) not in navigating_fix_qualities:
         return Mode.DEGRADED
