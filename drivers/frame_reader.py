@@ -101,6 +101,11 @@ class FrameReader(can.Listener):
             raise BusError(f"CAN bus {self.bus.channel_info} failed: {self.error}") from self.error
         return msg
 
+    @property
+    def pending(self) -> int:
+        """Frames received and not yet taken (a consumer behind its input has some)."""
+        return self._buffer.qsize()
+
     def _put(self, msg: can.Message) -> None:
         if self._buffer.full():
             self._buffer.get_nowait()

@@ -15,10 +15,11 @@ import pytest
 
 from drivers.errors import BusError
 from drivers.frame_reader import FrameReader
-from drivers.samples import ImuAux
+from drivers.samples import ImuAux, ImuSample
 from gateway.cli.main import build_parser, main
 from gateway.config.config_schema import ConfigError
 from gateway.config.gateway_config import GatewayConfig, ImuSection, example_toml
+from gateway.estimation.solution import Mode
 from gateway.isobus.j1939 import Pgn, can_id
 from gateway.service.bus_links import BusPlan, EchoFilter, claim_filters, is_bus_down
 from gateway.service.live_loop import GatewayService, Inbox
@@ -43,7 +44,7 @@ THREAD_ERROR = pytest.mark.filterwarnings("ignore::pytest.PytestUnhandledThreadE
 
 @THREAD_ERROR
 def test_reader_drops_oldest_when_full_and_ends_with_bus_error() -> None:
-    async def main() -> tuple[list[int], int, BaseException | None]:
+    async def main() -> tuple[list[int], int, int, BaseException | None]:
         ch = channel()
         with (
             can.Bus(interface="virtual", channel=ch) as rx,
@@ -53,16 +54,17 @@ def test_reader_drops_oldest_when_full_and_ends_with_bus_error() -> None:
                 for i in range(10):
                     tx.send(frame(i))
                 await asyncio.sleep(0.3)  # the notifier thread delivers all ten
+                pending = reader.pending
                 got = [(await reader.__anext__()).data[0] for _ in range(4)]
                 rx.shutdown()  # the interface goes away under the reader
                 try:
                     await asyncio.wait_for(reader.__anext__(), 3.0)
                 except BusError as exc:
-                    return got, reader.dropped, exc
-        return got, -1, None
+                    return got, reader.dropped, pending, exc
+        return got, -1, pending, None
 
-    got, dropped, error = asyncio.run(main())
-    assert got == [6, 7, 8, 9] and dropped == 6  # the newest frames are kept
+    got, dropped, pending, error = asyncio.run(main())
+    assert got == [6, 7, 8, 9] and dropped == 6 and pending == 4  # the newest frames are kept
     assert isinstance(error, BusError) and "failed" in str(error)
 
 
@@ -202,6 +204,47 @@ def test_inbox_drops_the_oldest_input_and_counts() -> None:
         return [int((await inbox.get()).t) for _ in range(3)], inbox.overloads
 
     assert asyncio.run(main()) == ([2, 3, 4], 2)
+
+
+def test_a_loop_behind_its_imu_input_does_not_report_the_imu_silent() -> None:
+    """IMU samples waiting for the core are not an IMU silence: the tick reports FAULT only
+    once nothing is pending (a backlog on a busy host is shed, and DEGRADED, not FAULT)."""
+    ch = channel()
+    dt = 1 / 204.8
+
+    def sample(t: float) -> ImuSample:
+        return ImuSample(t=t, dt=dt, w_ib_b=(0, 0, 0), f_ib_b=(0, 0, -9.81), seq=0)
+
+    def statuses(peer: can.BusABC) -> list[Mode]:
+        """The modes of the NAVGW_STATUS frames waiting at ``peer``."""
+        status_id = can_id(Pgn.NAVGW_STATUS, 0x1C, 6)
+        frames = iter(lambda: peer.recv(0), None)
+        return [Mode(m.data[2]) for m in frames if m.arbitration_id == status_id]
+
+    async def main() -> tuple[list[Mode], list[Mode]]:
+        service = GatewayService(GatewayConfig(imu=ImuSection(interface="virtual", channel=ch)))
+        with (
+            can.Bus(interface="virtual", channel=ch) as bus,
+            can.Bus(interface="virtual", channel=ch) as peer,
+        ):
+            service.isobus.bus = bus
+            for msg in service.core.start(0.0):  # the claim, as the service's ISOBUS opens
+                bus.send(msg)
+            service.tick(0.2)  # our claim (after a random wait of at most 153 ms)
+            service.tick(0.5)  # uncontested for 250 ms
+            assert service.core.claimer.claimed
+            for k in range(205):  # a second of samples: the core reports them
+                service.process(sample(0.5 + k * dt))
+            while peer.recv(0) is not None:
+                pass
+            service.inbox.offer(sample(1.5 + dt))  # read, not yet taken by the core
+            service.tick(2.0)
+            during = statuses(peer)
+            await service.inbox.get()  # the core takes it (or drops it as stale)
+            service.tick(2.05)
+            return during, statuses(peer)
+
+    assert asyncio.run(main()) == ([], [Mode.FAULT])
 
 
 def test_bus_down_errors_are_told_from_busy_ones() -> None:

@@ -399,10 +399,20 @@ class GatewayService:
         while True:
             await asyncio.sleep(self.timebase.wall_s(TICK_S))
             self._heartbeat = time.monotonic()
-            now = self.timebase.now()
-            if now - self._last_imu_t >= TICK_S:
-                self._send(self.core.poll(now))
-                self._release_fixes(now - HOLD_MAX_S)
+            self.tick(self.timebase.now())
+
+    def tick(self, now: float) -> None:
+        """What the loop does without IMU input (service time ``now``): the core's timers, and
+        FAULT once the IMU is silent; fixes held for the IMU go in."""
+        if now - self._last_imu_t >= TICK_S and not self._imu_pending():
+            self._send(self.core.poll(now))
+            self._release_fixes(now - HOLD_MAX_S)
+
+    def _imu_pending(self) -> bool:
+        """IMU input waits in a reader or the inbox: the loop is behind its input, and the
+        IMU is not silent (the core would take its last sample's age for a silence: FAULT)."""
+        readers = (link.reader for link in self.links if link.imu)
+        return not self.inbox.empty() or any(r is not None and r.pending for r in readers)
 
     async def _run_state(self, keeper: StateKeeper) -> None:
         """Save what the engine has learned every ``save_interval_s`` (service time), if
