@@ -150,10 +150,17 @@ def modes(log: Path, until: float = math.inf) -> list[Mode]:
     ]  # fmt: skip
 
 
-def final_mode(log: Path, inputs_end: float) -> Mode:
+def final_mode(log: Path, inputs_end: float) -> tuple[Mode, float]:
     """Byte 2 of the last NAVGW_STATUS frame before the inputs ended (after it, the IMU is
-    silent and the gateway rightly says FAULT)."""
-    return modes(log, inputs_end)[-1]
+    silent and the gateway rightly says FAULT), and how long before that end the last frame
+    in another mode was stamped (log seconds: how long the final mode had held)."""
+    stamped = [
+        (m.timestamp, Mode(m.data[2])) for m in read_candump(log)
+        if m.arbitration_id == STATUS_ID and m.timestamp <= inputs_end
+    ]  # fmt: skip
+    final = stamped[-1][1]
+    since = next((t for t, mode in reversed(stamped) if mode is not final), stamped[0][0])
+    return final, inputs_end - since
 
 
 def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Path) -> None:
@@ -210,8 +217,13 @@ def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Pa
     # samples, each gap DEGRADED for a while, a long one a new alignment: then it sends fewer
     # frames, and says so, but no wrong one; else it navigates to the end
     kept_up = imu.lost == core.imu_dropped == 0
-    final = final_mode(out_log, truth.t[0] + 80.0)
-    assert final is Mode.NAVIGATING or (final is not Mode.FAULT and not kept_up), (final, counts)
+    # A stall of this process in the last moments (the player's threads are in it too) may
+    # leave the service without IMU frames for IMU_SILENT_S: then FAULT is the truth, and the
+    # late frames are shed (not kept up). A FAULT that had held for a second is no stall.
+    final, held_s = final_mode(out_log, truth.t[0] + 80.0)
+    stalled = final is Mode.FAULT and held_s < 1.0
+    ok = final is Mode.NAVIGATING or (not kept_up and (final is not Mode.FAULT or stalled))
+    assert ok, (final, held_s, counts)
     check_output(live, truth, 80.0 - 0.5, speed=8.0, kept_up=kept_up)
     # what it sent is within the accuracy it stated, loaded or not (a few frames may be beyond
     # 3 sigma by chance); one that fell behind may have re-aligned on the move, and then said
@@ -327,7 +339,7 @@ def test_subprocess_on_udp_multicast_in_real_time(
     t_end = truth.t[0] + 45.0
     shed = "dropped" in stderr  # the gateway says it dropped IMU input (it fell behind)
     recent_stall = any(b > t_end - IMU_GAP_DEGRADED_S - 1.0 for _, b in stalls)
-    final = final_mode(out_log, played[-1])
+    final, _ = final_mode(out_log, played[-1])
     assert Mode.NAVIGATING in modes(out_log)
     assert final is Mode.NAVIGATING or (final is Mode.DEGRADED and (recent_stall or shed)), (
         final, stalls, stderr[-2000:])  # fmt: skip
