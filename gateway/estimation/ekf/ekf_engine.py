@@ -257,8 +257,11 @@ class EkfEngine:
             self._hist = InsHistory(max(2, math.ceil(self.cfg.history_s / dt)))
         self._t_s = t
         if self._p is None:
-            if dt > MAX_IMU_STEP_S:
-                # the window's rotation across the gap is a guess (_bridge): a new window
+            if dt > MAX_IMU_STEP_S and not self._win_at_rest:
+                # a moving window's rotation across the gap is a guess (_bridge): a new
+                # window. A rest window's mean (per sample) loses only the samples: a reader
+                # losing 0.1 s in every 0.16 s (a starved host) had restarted it at every
+                # gap and the engine never aligned.
                 self._win_t0_s = None
             self._align_tilt(t, w, f, dt)
         ins = self._ins
@@ -408,7 +411,9 @@ class EkfEngine:
         # the window's motion, and the noise of its mean specific force (vibration: 0.08 deg
         # for a 1 s window)
         assert self._tuning is not None
-        noise = math.sqrt(self._tuning.q_accel_m2_per_s3 / span) / GRAVITY_MPS2
+        # (of the samples the window has: those lost in its gaps do not average)
+        sampled_s = min(span, win_n * self._imu_dt_s)
+        noise = math.sqrt(self._tuning.q_accel_m2_per_s3 / sampled_s) / GRAVITY_MPS2
         self._sigma_level_rad = math.hypot(self._win_motion.tilt_sigma_rad(), noise)
         if not self._win_at_rest:  # and the gyro bias over the window's rotation
             drift = self._levelled_gyro_bias_sigma_rps() * (t - self._win_t0_s)

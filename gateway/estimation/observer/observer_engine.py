@@ -117,6 +117,9 @@ DIRECTION_SIGMAS = 3.0
 DIRECTION_DV_FLOOR_MPS = 0.02
 #: A speed beyond this many sigma of the fix's velocity noise is creeping, not standing still.
 CREEP_SIGMAS = 3.0
+#: Gaps in the IMU stream are differenced across by eq. (3) while this many 1-sigma of the
+#: velocity error their bridging may have made fit in the glitch gate (alone, never a glitch).
+GAP_SIGMAS_IN_GATE = 3.0
 #: Body rate for the stationarity test: mean over this long before the epoch.
 STATIONARY_RATE_WINDOW_S = 0.2
 #: Residual bias levels after convergence (seed 000, section 4): floors of the sigma model.
@@ -212,7 +215,8 @@ class ObserverEngine:
         self._imu_dt_s = 0.0  # the IMU's sample period, s
         self._floor_scale = 1.0  # the residual bias floors, for the noise measured
         self._noise_told = 1.0  # the noise excess last logged
-        self._gap_end_s = -math.inf  # IMU time of the last sample that bridged a gap
+        self._gap_end_s = -math.inf  # IMU time of the last gap that ended eq. (3)'s chain
+        self._gap_dv_var = 0.0  # (m/s)^2 the gaps bridged since the last difference base put in
         self._accel_psd = 0.0  # the accelerometer's white noise, (m/s^2)^2/Hz, as measured
         self._mounting_var = (cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         self._v_imu_ned_mps = [0.0, 0.0, 0.0]  # IMU-point velocity while coasting
@@ -325,10 +329,14 @@ class ObserverEngine:
         the rotation it holds over them is uncertain by what :func:`bridged_sigma` says,
         which the stated tilt takes (decaying with tau as the loop removes it), and the
         heading channel's and accel-bias filter's variances too. A gap (beyond
-        MAX_IMU_STEP_S) also ends the chain of eq. (3)'s differences: the specific-force
-        integral across it is no base for the next one (a held sample's vibration over 0.5 s
-        is 0.2 m/s of velocity: a glitch, then applied clipped once it persisted, and the
-        tilt went 0.7 deg off), and the heading's bias interval: its drift is no bias's."""
+        MAX_IMU_STEP_S) ends the heading's bias interval (its drift is no bias's), and it
+        ends the chain of eq. (3)'s differences once the velocity error the gaps since the
+        last base may have put in the specific-force integral is beyond a third of the
+        glitch gate (a held sample's vibration over 0.5 s is 0.2 m/s: a glitch, then applied
+        clipped once it persisted, and the tilt went 0.7 deg off). Shorter gaps, which alone
+        never make a glitch, are differenced across: a reader losing 0.1 s in every 0.16 s
+        (a starved host) had ended every chain, and with the loop never closed the tilt
+        drifted with the unlearnt gyro bias, 3 deg in 25 s at rest."""
         gap = self._imu.timing.bridged()
         assert self._observer is not None
         r = gap.rotation_rad
@@ -339,7 +347,11 @@ class ObserverEngine:
         if self._ba_filter is not None:
             self._ba_filter.bridge(sample.t, self._observer.c_bp9, sigma_tilt, new_chain=long)
         if long:
-            self._gap_end_s = sample.t
+            v = gap.velocity_mps
+            self._gap_dv_var += v[0] * v[0] + v[1] * v[1]
+            gate_mps = self._glitch_dv_mps(self._epoch_interval_s)
+            if (GAP_SIGMAS_IN_GATE * GAP_SIGMAS_IN_GATE) * self._gap_dv_var > gate_mps**2:
+                self._gap_end_s = sample.t
             self._hdt_screen.restart(sample.t)
 
     def _propagate_navigation(self, fpn: float, fpe: float, fpd: float, dt: float) -> None:
@@ -1121,9 +1133,9 @@ class ObserverEngine:
         if (
             prev is None
             or not 0.0 < interval_s <= self.cfg.max_gnss_interval_s
-            or prev[0] < self._gap_end_s  # the interval spans a bridged gap
+            or prev[0] < self._gap_end_s  # the interval spans a chain-ending gap
         ):
-            self._prev_epoch = current
+            self._prev_epoch, self._gap_dv_var = current, 0.0
             self._set_tilt_open(t_e)
             return False
         _, vn_prev, ve_prev, prow = prev
@@ -1146,7 +1158,7 @@ class ObserverEngine:
             e_n, e_e = e_n * gate_mps / mismatch_mps, e_e * gate_mps / mismatch_mps
             if self._ba_filter is not None:
                 self._ba_filter.lose_tilt(t_e, obs.c_bp9)
-        self._prev_epoch = current
+        self._prev_epoch, self._gap_dv_var = current, 0.0
         if not closed:
             self._set_tilt_open(t_e)
             return False
