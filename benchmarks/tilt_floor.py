@@ -15,10 +15,13 @@ the engine vibration's broadband part, sigma^2 dt per sample (the simulator's 0.
 204.8 Hz: 0.0105 m/s/sqrt(s), 16 times the datasheet's VRW and the largest term here). Biases
 are taken as known: the floor is lower than any real filter's.
 
-The observer's tilt loop (seed 000, first order, tau) has its own floor with the same noise:
-ARW sqrt(tau / 2) from the gyro, sigma_v / (g tau) from the GNSS velocity (e is a velocity
+The observer's tilt loop has its own floor with the same noise (the loop's own figures,
+gateway/estimation/observer/tilt_loop.py): seed 000's first order at tau = 4 s, ARW
+sqrt(tau / 2) from the gyro, sigma_v / (g tau) from the GNSS velocity (e is a velocity
 difference: its integral telescopes), sqrt(q_a / (2 tau)) / g from the accelerometer (e's mean
-f_p is a velocity random walk over each epoch, filtered by the loop).
+f_p is a velocity random walk over each epoch, filtered by the loop); the product's second
+order at the tau it takes for this noise, ARW sqrt(5 tau / 8), the velocity's times
+sqrt(2 T / tau), the accelerometer's the same.
 
 Heading: the same filter on the course over ground (sigma_v / u at speed u) and the z gyro's
 ARW; at the end of an outage of T s the cross-track 1-sigma is
@@ -38,6 +41,8 @@ import math
 import numpy as np
 
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, MG_MPS2, SQRT_SECONDS_PER_HOUR
+from gateway.estimation.observer.observer_config import ObserverConfig
+from gateway.estimation.observer.tilt_loop import TiltLoop
 
 EPOCH_S = 0.1  # 10 Hz receiver
 IMU_DT_S = 4.0 / 819.2  # 204.8 Hz
@@ -96,14 +101,14 @@ def tilt_floor_rad(vibration_mps2: float, positions: bool) -> float:
     return math.sqrt(steady_state(f[vt], q[vt], h, np.array([[VEL_SIGMA_MPS**2]]))[1, 1])
 
 
-def observer_loop_floor_rad(vibration_mps2: float, tau_s: float = TAU_OBSERVER_S) -> float:
-    """Tilt 1-sigma of the first-order loop of seed 000 with time constant ``tau_s``."""
-    g = GRAVITY_MPS2
-    return math.sqrt(
-        ARW_RAD_PER_SQRT_S**2 * tau_s / 2
-        + (VEL_SIGMA_MPS / (g * tau_s)) ** 2
-        + accel_psd(vibration_mps2) / (2 * tau_s) / g**2
-    )
+def observer_loop_floor_rad(vibration_mps2: float, second_order: bool) -> tuple[float, float]:
+    """Tilt 1-sigma of the observer's loop and its tau, s: seed 000's first order at
+    ``TAU_OBSERVER_S``, or the product's second order at the tau it takes for this noise."""
+    loop = TiltLoop(ObserverConfig().tau_s if second_order else TAU_OBSERVER_S, second_order)
+    loop.set_imu_noise(ARW_RAD_PER_SQRT_S, accel_psd(vibration_mps2))
+    loop.control((0.0, 0.0), EPOCH_S, EPOCH_S, VEL_SIGMA_MPS)
+    var = loop.noise_tilt_var() + loop.velocity_tilt_sigma(VEL_SIGMA_MPS, EPOCH_S) ** 2
+    return math.sqrt(var), loop.tau_now_s
 
 
 def heading_floor_rad(speed_mps: float) -> float:
@@ -126,17 +131,20 @@ def main() -> None:
     print("Roll/pitch 1-sigma floor, deg (RTK fixed, 10 Hz, biases known):\n")
     print(
         "| accelerometer noise | best filter, velocity + position | velocity only "
-        f"| observer loop (tau {TAU_OBSERVER_S:g} s) |"
+        f"| seed 000's first-order loop (tau {TAU_OBSERVER_S:g} s) | second-order loop (its tau) |"
     )
-    print("|---|---|---|---|")
+    print("|---|---|---|---|---|")
     rows = (
         ("datasheet VRW only", 0.0),
         (f"+ vibration {VIBRATION_MPS2:g} m/s^2 per sample", VIBRATION_MPS2),
     )
     for label, vib in rows:
+        first, _ = observer_loop_floor_rad(vib, second_order=False)
+        second, tau = observer_loop_floor_rad(vib, second_order=True)
         print(
             f"| {label} | {tilt_floor_rad(vib, True) * deg:.3f} | "
-            f"{tilt_floor_rad(vib, False) * deg:.3f} | {observer_loop_floor_rad(vib) * deg:.3f} |"
+            f"{tilt_floor_rad(vib, False) * deg:.3f} | {first * deg:.3f} | "
+            f"{second * deg:.3f} ({tau:.1f} s) |"
         )
     print("\nHeading floor and cross-track 1-sigma at the end of an outage:\n")
     print("| speed m/s | heading deg | 20 s outage cm | 60 s outage cm |")

@@ -74,8 +74,8 @@ def loop_run(
         accel = math.sqrt(NOISE.accel_psd / T_S) * rng.normal(size=2)
         e = -0.5 * (x_start + x) + f_true + (v_noise - v_noise_prev) / T_S + accel
         v_noise_prev = v_noise
-        db = flt.epoch(t, (e[0], e[1]), (0.0, 0.0), level_c9(psi), (*b_hat, 0.0, 0.0, 0.0),
-                       SIGMA_V, learn=True)  # fmt: skip
+        db = flt.epoch(t, (e[0], e[1]), (e[0], e[1]), (0.0, 0.0), level_c9(psi),
+                       (*b_hat, 0.0, 0.0, 0.0), SIGMA_V, learn=True)  # fmt: skip
         b_hat = b_hat + np.array(db)
         e_applied = e
         out.append((t, b_hat.copy(), flt.sigma_mps2))
@@ -120,8 +120,8 @@ def test_a_platform_turned_by_the_engine_is_not_read_as_bias() -> None:
             c, s = math.cos(2.0), math.sin(2.0)
             x = np.array([[c, -s], [s, c]]) @ x
         # the bias turns with the body, the tilt with the platform: e stays 0
-        db = flt.epoch((k + 1) * T_S, (0.0, 0.0), (0.0, 0.0), level_c9(psi), (0, 0, 0, 0, 0),
-                       SIGMA_V, learn=True)  # fmt: skip
+        db = flt.epoch((k + 1) * T_S, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), level_c9(psi),
+                       (0, 0, 0, 0, 0), SIGMA_V, learn=True)  # fmt: skip
         b_hat += db
     assert np.max(np.abs(b_hat)) < 0.5 * MG_MPS2
     assert flt.sigma_mps2 > 0.09

@@ -108,10 +108,15 @@ def test_cli_corrects_a_wrong_mounting_with_a_line_load_config_accepts(
         # the accel-bias filter learns the x/y biases from one U-turn each way; the yaw
         # needs more lateral acceleration than two U-turns give
         ("", (SAME_LINE, MORE_LATERAL), TURN_BOTH_WAYS),
-        # eq. (12) has not learnt them after two U-turns: roll and pitch need more turning
-        ("[observer]\naccel_bias_filter = false\n", (SAME_LINE, TURN_BOTH_WAYS), None),
+        # the paper's observer (eq. 12, the first-order loop at 4 s) has not learnt them
+        # after two U-turns: roll and pitch need more turning
+        (
+            "[observer]\naccel_bias_filter = false\nsecond_order_tilt_loop = false\ntau_s = 4.0\n",
+            (SAME_LINE, TURN_BOTH_WAYS),
+            None,
+        ),
     ],
-    ids=["accel-bias-filter", "eq12"],
+    ids=["accel-bias-filter", "paper"],
 )
 def test_a_drive_missing_manoeuvres_says_which_and_exits_3(
     tmp_path: Path,

@@ -7,6 +7,8 @@
   magnetometer and no GNSS acceleration, so roll/pitch is what they are judged on.
 - ``observer-no-bias``: the observer with bias estimation switched off (a config flag, see
   :data:`ENGINES` in ``benchmarks/accuracy.py``).
+- ``observer-first-order``: the observer with seed 000's first-order tilt loop at the
+  paper's tau (the product's second-order loop off: ``gateway.estimation.observer.tilt_loop``).
 
 All three tilt baselines run an
 :class:`~gateway.estimation.observer.observer_engine.ObserverEngine` beside
@@ -99,6 +101,10 @@ class LevelEngine(_TiltSwapEngine):
         return 0.0, 0.0, None
 
 
+#: Seed 000's tilt time constant (section 4) for its first-order loop, s.
+PAPER_TAU_S = 4.0
+
+
 class AhrsEngine(_TiltSwapEngine):
     """Mahony or Madgwick from the ``ahrs`` package (imported lazily: a dev extra).
 
@@ -108,8 +114,8 @@ class AhrsEngine(_TiltSwapEngine):
     the observer. Gains (the filters' own parameters, chosen by the same physics as the
     observer's, not tuned on the runs):
 
-    - Mahony: k_P = 1/tau (tilt time constant tau, as the observer), k_I = 1/(tau tau_g)
-      (the bias loop of eq. 11: b' = theta / (tau tau_g)).
+    - Mahony: k_P = 1/tau (seed 000's first-order tilt loop, :data:`PAPER_TAU_S`),
+      k_I = 1/(tau tau_g) (the bias loop of eq. 11: b' = theta / (tau tau_g)).
     - Madgwick: beta = sqrt(3/4) w_beta (Madgwick 2010, eq. 50) with w_beta the 3-sigma
       turn-on gyro bias of the IMU, 0.3 deg/s.
     """
@@ -121,7 +127,7 @@ class AhrsEngine(_TiltSwapEngine):
         self.kind = kind
         if kind == "mahony":
             self._filter: Mahony | Madgwick = Mahony(
-                k_P=1.0 / config.tau_s, k_I=1.0 / (config.tau_s * config.tau_g_s)
+                k_P=1.0 / PAPER_TAU_S, k_I=1.0 / (PAPER_TAU_S * config.tau_g_s)
             )
         elif kind == "madgwick":
             self._filter = Madgwick(gain=math.sqrt(0.75) * 0.3 * DEG_TO_RAD)
@@ -214,6 +220,9 @@ ENGINES: dict[str, Callable[[RunSetup], Estimator]] = {
     "observer": lambda s: ObserverEngine(s.observer_config()),
     "observer-no-bias": lambda s: ObserverEngine(s.observer_config(estimate_biases=False)),
     "observer-eq12": lambda s: ObserverEngine(s.observer_config(accel_bias_filter=False)),
+    "observer-first-order": lambda s: ObserverEngine(
+        s.observer_config(second_order_tilt_loop=False, tau_s=PAPER_TAU_S)
+    ),
     "level": lambda s: LevelEngine(s.observer_config()),
     "mahony": lambda s: AhrsEngine("mahony", s.observer_config()),
     "madgwick": lambda s: AhrsEngine("madgwick", s.observer_config()),

@@ -30,7 +30,7 @@ import math
 from collections import deque
 from dataclasses import dataclass
 
-#: Window of the corrections' sum, s: longer than the observer's tau (4 s), over which the
+#: Window of the corrections' sum, s: longer than the observer's tau (2-4 s), over which the
 #: loop takes an accelerometer bias change into the tilt, short against the turns that
 #: learn it back.
 WINDOW_S = 5.0

@@ -11,9 +11,10 @@ quarter turn on `field` moves it by 5-11 mg while it removes a fifth of its erro
 it.
 
 Per closed-loop GNSS epoch the engine hands over e = f_gnss - mean(f_p) (horizontal, NED) over
-the interval T, the same e its tilt loop corrects with. Their sum r = sum e T is a velocity
-residual whose noise is the last velocity's alone (the differences telescope), so r, not e,
-is the measurement. States:
+the interval T, and the e its tilt loop corrects with over the next (e itself in the paper's
+first-order loop, low-passed in the second-order one: :mod:`.tilt_loop`). Their sum
+r = sum e T is a velocity residual whose noise is the last velocity's alone (the differences
+telescope), so r, not e, is the measurement. States:
 
     dv  (2)  the velocity residual since the chain of epochs began, m/s
     x   (2)  the platform's tilt error as a specific force, g (phi_E, -phi_N), m/s^2
@@ -198,14 +199,16 @@ class AccelBiasFilter:
         self,
         t_s: float,
         e_ne_mps2: tuple[float, float],
+        u_ne_mps2: tuple[float, float],
         f_p_ne_mps2: tuple[float, float],
         c9: Mat9,
         biases: tuple[float, float, float, float, float],
         vel_sigma_mps: float,
         learn: bool,
     ) -> tuple[float, float]:
-        """One closed-loop epoch at ``t_s``: ``e`` over the interval since the last (the e the
-        loop now corrects with), ``f_p`` the interval's mean horizontal specific force, the
+        """One closed-loop epoch at ``t_s``: ``e`` over the interval since the last, ``u``
+        the e the loop now corrects with (the engine's :class:`.tilt_loop.TiltLoop`), ``f_p``
+        the interval's mean horizontal specific force, the
         estimates b_a x, y, z and b_g x, y as they are, the fix's velocity 1-sigma. With
         ``learn`` (the engine's gates open) the epoch is weighed and the x/y accelerometer bias
         correction to add to the estimate is returned, m/s^2; else (0, 0)."""
@@ -229,7 +232,7 @@ class AccelBiasFilter:
             self._p[_DV, _DV] = vel_sigma_mps**2 * np.eye(2)
             self._r[:] = 0.0
         self._chained = True
-        self._e_applied = e
+        self._e_applied = np.array(u_ne_mps2, dtype=float)
         if not learn:
             return (0.0, 0.0)
         correction = (float(self._s[4]), float(self._s[5]))

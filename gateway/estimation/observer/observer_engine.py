@@ -74,6 +74,7 @@ from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.position_channel import PositionChannel
 from gateway.estimation.observer.rest_window import RestWindow
 from gateway.estimation.observer.tereshkov import TereshkovObserver
+from gateway.estimation.observer.tilt_loop import TiltLoop
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
     LearnedState,
@@ -186,8 +187,10 @@ class ObserverEngine:
         self._align_motion = WindowMotion(cfg.gnss_vel_sigma_mps, cfg.stationary_speed_mps)
         # tilt error of levelling on a moving window, or of a coast, decaying with the loop
         self._sigma_level_rad = 0.0
+        self._sigma_level_held = 0.0  # the part of it in the loop's low-pass (TiltLoop.decay)
         # the tilt the accel-bias filter's recent corrections left, N/E, m/s^2 (_filter_epoch)
         self._ba_tilt_ne = (0.0, 0.0)
+        self._ba_tilt_held_ne = (0.0, 0.0)
         self._heading_aligned = False
         # IMU-time state and history
         self._t_s: float | None = None
@@ -209,7 +212,8 @@ class ObserverEngine:
         # the constant terms of the roll/pitch variance (_sigma_tilt_rad)
         arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self._gyro_arw = arw  # rad/sqrt(s), the white rate noise measured where it is more
-        self._arw_tilt_var = arw**2 * cfg.tau_s / 2.0
+        self._tilt_loop = TiltLoop(cfg.tau_s, cfg.second_order_tilt_loop)
+        self._tilt_loop.set_imu_noise(arw, 0.0)
         self._rest = RestWindow(arw)  # the specific force of a stop (_level_at_rest)
         self._noise = noise or ImuNoiseMeter()  # the IMU's white noise at rest, vibration too
         self._imu_dt_s = 0.0  # the IMU's sample period, s
@@ -491,6 +495,8 @@ class ObserverEngine:
             return
         roll, pitch = roll_pitch_from_specific_force((s[3] / n, s[4] / n, s[5] / n))
         self._sigma_level_rad = self._align_motion.tilt_sigma_rad()
+        self._sigma_level_held = 0.0
+        self._tilt_loop.clear()
         self._observer = TereshkovObserver(
             self.cfg.tau_s,
             self.cfg.tau_g_s,
@@ -800,7 +806,7 @@ class ObserverEngine:
         level = self._rest.epoch(t_e, self._t_s, f_b, (row[_WI_X], row[_WI_Y]), v_ref_ne_mps)
         if (
             level is None
-            or level.sigma_tilt_rad**2 >= self._arw_tilt_var + self._sigma_level_rad**2
+            or level.sigma_tilt_rad**2 >= self._noise_tilt_var + self._sigma_level_rad**2
         ):
             self._prev_rest_row = None
             return
@@ -808,8 +814,9 @@ class ObserverEngine:
         self._rotate_platform(levelling_correction(obs.c_bp9, (-f[0], -f[1], -f[2])))
         self._set_tilt_open(t_e)
         # what a levelling on a moving window or a coast left in the tilt is gone with it
-        self._sigma_level_rad = min(self._sigma_level_rad, level.sigma_tilt_rad)
-        self._ba_tilt_ne = (0.0, 0.0)
+        if level.sigma_tilt_rad < self._sigma_level_rad:
+            self._sigma_level_rad, self._sigma_level_held = level.sigma_tilt_rad, 0.0
+        self._ba_tilt_ne = self._ba_tilt_held_ne = (0.0, 0.0)
         # eq. (3)'s differences start again after the stop: the corrections they would have
         # made here are not made, so the next ones must not telescope onto them (the first
         # 0.2 s of a pull-away are still "at rest", and before the heading is known their
@@ -847,10 +854,10 @@ class ObserverEngine:
                 r_a,
             )
         self._gyro_arw = arw * r_g
-        self._arw_tilt_var = self._gyro_arw**2 * cfg.tau_s / 2.0
         self._floor_scale = max(r_g, r_a)
         self._accel_psd = (sigma_a * r_a) ** 2 * dt
         self._rest.set_noise(self._gyro_arw, self._accel_psd)
+        self._tilt_loop.set_imu_noise(self._gyro_arw, self._accel_psd)
         if self._ba_filter is not None:
             self._ba_filter.noise = self._bias_filter_noise()
 
@@ -1066,7 +1073,7 @@ class ObserverEngine:
             # of pitch left after 3 s at rest: 0.08 m/s in the 0.3 s to the first epoch, with
             # 0.1 m/s of true speed; decided there, the heading aligned 180 deg off for good,
             # and the tilt went 13 deg off: steep-turns seed 94 with a stall at 160 s)
-            sigma_theta = math.sqrt(self._sigma_level_rad**2 + self._arw_tilt_var)
+            sigma_theta = math.sqrt(self._sigma_level_rad**2 + self._noise_tilt_var)
             sigma_dv = GRAVITY_MPS2 * sigma_theta * since_s + DIRECTION_DV_FLOOR_MPS
             self._forward_known = abs(dv_x) >= DIRECTION_SIGMAS * sigma_dv
             if not self._forward_known:
@@ -1143,7 +1150,6 @@ class ObserverEngine:
         e_e = (v_imu_e - ve_prev) / interval_s - (row[_SF_E] - prow[_SF_E]) / interval_s
         last = self._t_last_epoch_s
         period_s = interval_s if last is None else min(interval_s, max(t_e - last, 1e-3))
-        scale = interval_s / period_s
         mismatch_mps, gate_mps = math.hypot(e_n, e_e) * interval_s, self._glitch_dv_mps(period_s)
         glitch = mismatch_mps > gate_mps
         if not glitch:
@@ -1162,21 +1168,29 @@ class ObserverEngine:
         if not closed:
             self._set_tilt_open(t_e)
             return False
-        obs.correct_tilt(e_n * scale, e_e * scale)
-        self._watch_corrections(t_e, e_n, e_e, interval_s)
+        u_ne = self._tilt_loop.control((e_n, e_e), interval_s, period_s, self._fix_sigma_v())
+        obs.correct_tilt(*u_ne)
+        self._watch_corrections(t_e, u_ne, period_s)
         if self._ba_filter is not None and not glitch:
-            self._filter_epoch(t_e, (e_n, e_e), (row, prow), interval_s)
-        self._sigma_level_rad *= math.exp(-interval_s / self.cfg.tau_s)
+            self._filter_epoch(t_e, (e_n, e_e), u_ne, (row, prow), interval_s)
+        self._sigma_level_rad, self._sigma_level_held = self._tilt_loop.decay(
+            self._sigma_level_rad, self._sigma_level_held, interval_s
+        )
         self._epoch_interval_s = interval_s
         a = min(1.0, interval_s / E_NOISE_TAU_S)
         self._e_var_mps4 += a * (0.5 * (e_n * e_n + e_e * e_e) - self._e_var_mps4)
         return glitch
 
     def _filter_epoch(
-        self, t_e: float, e_ne: tuple[float, float], rows: tuple[_Row, _Row], interval_s: float
+        self,
+        t_e: float,
+        e_ne: tuple[float, float],
+        u_ne: tuple[float, float],
+        rows: tuple[_Row, _Row],
+        interval_s: float,
     ) -> None:
-        """Feed the accel-bias filter the epoch's e (it starts with learning) and apply the
-        x/y bias correction it returns."""
+        """Feed the accel-bias filter the epoch's e and the e the loop applies from it
+        (``u_ne``; it starts with learning) and apply the x/y bias correction it returns."""
         obs, flt = self._observer, self._ba_filter
         assert obs is not None and flt is not None
         ba, bg = obs.ba_hat_mps2, obs.bg_hat_rps
@@ -1187,37 +1201,35 @@ class ObserverEngine:
             flt.start(obs.c_bp9, self._ba_origin[2], biases, self._bias_filter_noise())
         row, prow = rows
         f_p = ((row[_SF_N] - prow[_SF_N]) / interval_s, (row[_SF_E] - prow[_SF_E]) / interval_s)
-        fix = self._last_fix
-        sigma_v = self.cfg.gnss_vel_sigma_mps
-        if fix is not None:
-            sigma_v = fix_velocity_sigma_mps(fix, sigma_v)
-        db = flt.epoch(t_e, e_ne, f_p, obs.c_bp9, biases, sigma_v, obs.learn)
+        db = flt.epoch(t_e, e_ne, u_ne, f_p, obs.c_bp9, biases, self._fix_sigma_v(), obs.learn)
         obs.add_accel_bias_xy(*db)
         # The tilt a bias error holds (b / g) moves by what is learnt of it, and the loop
         # follows with its tau: until then the platform is off by the sum of the recent
-        # corrections, N/E, decaying with tau (a first turn with seed 000's 0.2 m/s^2 learnt
-        # it in two seconds and stated 0.39 deg while roll was still 1.17 deg off).
-        c, k = obs.c_bp9, math.exp(-interval_s / self.cfg.tau_s)
-        n, e = self._ba_tilt_ne
-        n = k * n + c[0] * db[0] + c[1] * db[1]
-        self._ba_tilt_ne = (n, k * e + c[3] * db[0] + c[4] * db[1])
+        # corrections, N/E, decaying with the loop (a first turn with seed 000's 0.2 m/s^2
+        # learnt it in two seconds and stated 0.39 deg while roll was still 1.17 deg off).
+        c, decay = obs.c_bp9, self._tilt_loop.decay
+        (n, e), (n_held, e_held) = self._ba_tilt_ne, self._ba_tilt_held_ne
+        n, n_held = decay(n, n_held, interval_s)
+        e, e_held = decay(e, e_held, interval_s)
+        self._ba_tilt_ne = (n + c[0] * db[0] + c[1] * db[1], e + c[3] * db[0] + c[4] * db[1])
+        self._ba_tilt_held_ne = (n_held, e_held)
 
-    def _watch_corrections(self, t_e: float, e_n: float, e_e: float, interval_s: float) -> None:
-        """The tilt the loop's control turns the platform by over the coming interval (eq.
-        3: w_p = (-e_E, e_N) / (tau g)) into :class:`TiltCorrections`; beyond what the noise
-        and the stated bias and tilt sigmas explain, the biases changed. Only while the
-        learning gates are open: a fix not good enough to learn biases from is no evidence
-        that they changed (gnss-outage seed 3, single point: 1.0 deg of corrections in 5 s
-        from its 8 cm/s velocities)."""
+    def _watch_corrections(self, t_e: float, u_ne: tuple[float, float], period_s: float) -> None:
+        """The tilt the loop's control turns the platform by over the coming period (eq.
+        3: w_p = (-u_E, u_N) / (tau g), u the e applied) into :class:`TiltCorrections`;
+        beyond what the noise and the stated bias and tilt sigmas explain, the biases
+        changed. Only while the learning gates are open: a fix not good enough to learn
+        biases from is no evidence that they changed (gnss-outage seed 3, single point: 1.0
+        deg of corrections in 5 s from its 8 cm/s velocities)."""
         obs = self._observer
         assert obs is not None
         if not obs.learn:
             self._corrections.clear()
             return
-        k = interval_s / (self.cfg.tau_s * GRAVITY_MPS2)
+        k = period_s / (self.cfg.tau_s * GRAVITY_MPS2)
         corrections = self._corrections
         sigma_tilt = math.sqrt(self._model_tilt_var(0.0))
-        corrections.add(t_e, -e_e * k, e_n * k, sigma_tilt)
+        corrections.add(t_e, -u_ne[1] * k, u_ne[0] * k, sigma_tilt)
         change = corrections.check(self._gyro_arw, self._sigma_bg_rps(), sigma_tilt)
         if change is not None:
             self._bias_changed(t_e, change)
@@ -1276,7 +1288,8 @@ class ObserverEngine:
         return noise_mps + cfg.e_gate_mps2 * period_s
 
     def _set_tilt_open(self, t_s: float | None) -> None:
-        """The tilt loop opens (at epoch time ``t_s``: until then its control was on)."""
+        """The tilt loop opens (at epoch time ``t_s``: until then its control was on). What
+        its low-pass still owes waits for the loop to close (:mod:`.tilt_loop`)."""
         obs = self._observer
         assert obs is not None
         obs.open_tilt_loop()
@@ -1287,6 +1300,7 @@ class ObserverEngine:
         """C <- exp([phi]x) C (a levelling): the accel-bias filter's tilt error moves with it."""
         assert self._observer is not None
         self._observer.rotate(phi_rad)
+        self._tilt_loop.clear()
         if self._ba_filter is not None:
             self._ba_filter.rotate(phi_rad)
 
@@ -1295,6 +1309,7 @@ class ObserverEngine:
         the HDT screen's gyro heading breaks (the history's rows up to now keep the old)."""
         assert self._observer is not None and self._t_s is not None
         self._observer.rotate_about_vertical(dpsi_rad)
+        self._tilt_loop.rotate_about_vertical(dpsi_rad)
         self._hdt_screen.restart(self._t_s)
         if self._ba_filter is not None:
             self._ba_filter.rotate_about_vertical(dpsi_rad)
@@ -1353,7 +1368,8 @@ class ObserverEngine:
             self._g_learn += interval_s / self.cfg.tau_g_s
             wz = obs.w_b_rps[2]
             omega_a = self.cfg.omega_a_dps * DEG_TO_RAD
-            self._a_learn += wz * wz * interval_s / (omega_a * (1.0 + (wz * self.cfg.tau_s) ** 2))
+            tau = self._tilt_loop.tau_now_s
+            self._a_learn += wz * wz * interval_s / (omega_a * (1.0 + (wz * tau) ** 2))
         if ok is None:
             return
         if not (ok and self.cfg.estimate_biases):
@@ -1779,25 +1795,38 @@ class ObserverEngine:
         excess = self._corrections.excess_rad(self._gyro_arw, self._sigma_bg_rps(), sigma)
         return math.sqrt(var + excess * excess) if excess else sigma
 
+    @property
+    def _noise_tilt_var(self) -> float:
+        """Steady roll/pitch variance from the IMU's white noise through the tilt loop."""
+        return self._tilt_loop.noise_tilt_var()
+
+    def _fix_sigma_v(self) -> float:
+        """The last fix's horizontal velocity 1-sigma per axis, at least RTK's, m/s."""
+        fix, sigma_rtk = self._last_fix, self.cfg.gnss_vel_sigma_mps
+        return sigma_rtk if fix is None else fix_velocity_sigma_mps(fix, sigma_rtk)
+
     def _model_tilt_var(self, coasting_s: float) -> float:
         """Roll/pitch variance from the observer's physics (seed 000, eqs. 3, 8, 10): the
         sum of the squares of:
-        - gyro angular random walk through the tilt loop (first order, tau): ARW sqrt(tau / 2);
+        - the IMU's white noise through the tilt loop: gyro ARW sqrt(tau / 2) first order,
+          ARW sqrt(5 tau / 8) second order, and the accelerometer's, white on e
+          (:mod:`.tilt_loop`);
         - GNSS velocity noise: e is a velocity *difference* over T, so its integral telescopes
-          and the tilt sees one velocity error, not a random walk: sigma_v / (g tau), with
-          sigma_v^2 = var(e) T^2 / 2 from the running variance of e (white velocity noise
-          differenced at 10 Hz is 0.28 m/s^2 on e but only 0.03 deg of tilt);
+          and the tilt sees one velocity error, not a random walk: sigma_v / (g tau), second
+          order times sqrt(2 T / tau), with sigma_v^2 = var(e) T^2 / 2 from the running
+          variance of e (white velocity noise differenced at 10 Hz is 0.28 m/s^2 on e but only
+          0.03 deg of tilt through the paper's loop);
         - residual gyro bias times tau (steady tilt b_g tau, eq. 10) and accelerometer bias
           over g (eq. 8), each decaying from its initial 1-sigma with the learning exponent
           down to the paper's residual level;
         - the z accelerometer bias as C f_b puts it on the horizontal, b_az sin(tilt) / g;
         - open-loop drift while coasting (:meth:`_coast_drift_rad`);
         - the tilt error of levelling on a moving window (:mod:`gateway.estimation.levelling`)
-          or of the last coast's drift, decaying with tau while the tilt loop is closed;
+          or of the last coast's drift, decaying with the loop while it is closed;
         - the tilt the accel-bias filter's recent corrections left, until the loop follows;
         - the IMU mounting's own roll/pitch 1-sigma (an estimated mounting is not exact).
         """
-        tau = self.cfg.tau_s
+        tau = self._tilt_loop.tau_now_s
         g = GRAVITY_MPS2
         sigma_bg = self._sigma_bg_rps()
         sigma_ba = self._sigma_ba_mps2()
@@ -1806,8 +1835,8 @@ class ObserverEngine:
         c = obs.c_bp9 if obs is not None else (0.0,) * 9
         sin2_tilt = c[2] * c[2] + c[5] * c[5]  # body z's horizontal part, squared
         return (
-            self._arw_tilt_var
-            + (sigma_v / (g * tau)) ** 2
+            self._noise_tilt_var
+            + self._tilt_loop.velocity_tilt_sigma(sigma_v, self._epoch_interval_s) ** 2
             + (sigma_bg * tau) ** 2
             + (sigma_ba / g) ** 2
             + sin2_tilt * (self._sigma_baz_mps2() / g) ** 2
