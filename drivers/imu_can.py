@@ -366,6 +366,7 @@ class ImuDecoder:
         self._a_last = 0.0  # arrival of the last emitted sample
         self._offset = 0.0  # t_arrival_min(n) = offset + n dt
         self._missing: set[int] = set()
+        self._skipped_frames = 0  # IMU frames received but not fed since the last sample
         # Lateness windows (module docstring), in q = arrival - n dt, which needs no offset.
         self._win_s = self.config.wrap_check_s / 2
         self._steady_tol = self.config.wrap_check_s / 32
@@ -389,6 +390,15 @@ class ImuDecoder:
             msg.is_remote_frame,
         )
         return [] if item is None else [item]
+
+    def skipped(self, frames: int) -> None:
+        """``frames`` IMU frames were received but not fed (a reader behind its input shed
+        them as stale). The next SEQ step is then taken as the one nearest to that many
+        samples (two frames each), whole SEQ wraps included: a shed backlog of more than a
+        wrap was otherwise an outage of unknown length, its samples under-counted and timed
+        a wrap early until the arrivals showed it, and the samples on the edge of that
+        decision read as out of order (the live service at 8x under two CPU hogs: 8 dropped)."""
+        self._skipped_frames += frames
 
     def feed_record(self, record: FrameFields | can.Message) -> ImuSample | ImuAux | None:
         """Decode one frame, a message or a candump line's fields
@@ -480,7 +490,10 @@ class ImuDecoder:
             n = 0 if start else self._n_last + 1
             self._n_first = n
             self._missing.clear()
+            self._skipped_frames = 0
             self._anchor(a, n, a - n * self._dt, seq, None if start else f"DEC changed to {dec}")
+        elif self._skipped_frames:
+            n = self._track(seq, a, self._after_skip(seq, a))
         else:
             if (seq - self._seq_last) & 0xFF == 1:  # the next sample: nothing to unwrap
                 self._seq_taken, self._shift_pending = seq, None
@@ -605,14 +618,28 @@ class ImuDecoder:
                 self._late(a, back, seq)
                 return None
             k = k or 256
-        n = n_last + k
-        if k > 1:
-            self.counters.lost += k - 1
+        return self._lost_before(seq, a, n_last + k)
+
+    def _after_skip(self, seq: int, a: float) -> int:
+        """The index of sample ``seq`` arriving at ``a`` after frames the reader shed
+        (:meth:`skipped`): its SEQ step plus the whole wraps that bring it nearest to half
+        the frames shed; the samples between counted lost."""
+        k = (seq - self._seq_last) & 0xFF or 256
+        wraps = max(0, round((self._skipped_frames / 2 + 1 - k) / 256))
+        self._skipped_frames = 0
+        self._seq_taken, self._shift_pending = seq, None
+        return self._lost_before(seq, a, self._n_last + k + 256 * wraps)
+
+    def _lost_before(self, seq: int, a: float, n: int) -> int:
+        """Sample ``seq`` is index ``n``: the samples since the last counted lost; returns n."""
+        n_last = self._n_last
+        if n - n_last > 1:
+            self.counters.lost += n - n_last - 1
             self._missing.update(range(max(n - 256, n_last + 1), n))
             self._warn(
                 WarningKind.LOST,
                 a,
-                f"{k - 1} IMU samples lost before SEQ {seq} "
+                f"{n - n_last - 1} IMU samples lost before SEQ {seq} "
                 f"(id 0x{self.config.ids.gyro:X}); expected SEQ {(self._seq_last + 1) % 256}",
             )
         return n

@@ -519,8 +519,9 @@ class GatewayService:
         goes, and it starts afresh. Decoding every frame, such a reader stayed a socket
         buffer behind and no sample reached the engine for 20 s (an emulated guest on a busy
         CI host); shedding only the stale ones, it stayed at the edge, and what it decoded
-        was stale at the core. The IMU decoder counts their samples lost (NAVGW_STATUS
-        byte 6); the recording keeps them, as the bus carried them."""
+        was stale at the core. The IMU decoder is told how many were shed, and counts their
+        samples lost (NAVGW_STATUS byte 6), whole SEQ wraps included; the recording keeps
+        them, as the bus carried them."""
         assert link.reader is not None
         now = time.time()
         again = now - self._shed_at < self.timebase.wall_s(SHED_AGAIN_S)
@@ -528,6 +529,7 @@ class GatewayService:
         before = now if again else now - self.timebase.wall_s(MAX_SAMPLE_AGE_S)
         shed = link.reader.shed(before, keep=lambda m: not self._is_imu(m))
         self.stats.frames_shed += 1 + len(shed)
+        self.imu_decoder.skipped(1 + len(shed))
         if self.recorder is not None:
             self.recorder.can(msg)
             for frame in shed:
