@@ -666,7 +666,7 @@ class ObserverEngine:
             along_x = self._velocity_along_body_x(fix, t_e, c_e, w_lever, row)
             if along_x is not None:
                 v_tilt, closed = along_x, True
-        glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed)
+        glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed, sigma_v)
         if not closed:
             # moving before the heading and the direction of travel are known: the velocity is
             # in the receiver's azimuth, not the platform's, so no base for eq. (3)'s next
@@ -1107,9 +1107,10 @@ class ObserverEngine:
         self._forward_known = True
 
     def _correct_tilt(
-        self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row, closed: bool
+        self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row, closed: bool, sigma_v: float
     ) -> bool:
-        """Eq. (3) over exactly the GNSS interval; returns True for a glitch.
+        """Eq. (3) over exactly the GNSS interval (``sigma_v`` the fix's velocity 1-sigma,
+        m/s); returns True for a glitch.
 
         e = (v_k - v_{k-1}) / T - mean f_p over [t_{k-1}, t_k], horizontal (the -g term has no
         horizontal part). The velocity is moved from the antenna to the IMU with both lever
@@ -1168,11 +1169,11 @@ class ObserverEngine:
         if not closed:
             self._set_tilt_open(t_e)
             return False
-        u_ne = self._tilt_loop.control((e_n, e_e), interval_s, period_s, self._fix_sigma_v())
+        u_ne = self._tilt_loop.control((e_n, e_e), interval_s, period_s, sigma_v)
         obs.correct_tilt(*u_ne)
         self._watch_corrections(t_e, u_ne, period_s)
         if self._ba_filter is not None and not glitch:
-            self._filter_epoch(t_e, (e_n, e_e), u_ne, (row, prow), interval_s)
+            self._filter_epoch(t_e, (e_n, e_e), u_ne, (row, prow), interval_s, sigma_v)
         self._sigma_level_rad, self._sigma_level_held = self._tilt_loop.decay(
             self._sigma_level_rad, self._sigma_level_held, interval_s
         )
@@ -1188,9 +1189,11 @@ class ObserverEngine:
         u_ne: tuple[float, float],
         rows: tuple[_Row, _Row],
         interval_s: float,
+        sigma_v: float,
     ) -> None:
         """Feed the accel-bias filter the epoch's e and the e the loop applies from it
-        (``u_ne``; it starts with learning) and apply the x/y bias correction it returns."""
+        (``u_ne``; it starts with learning), with the fix's velocity 1-sigma, and apply the
+        x/y bias correction it returns."""
         obs, flt = self._observer, self._ba_filter
         assert obs is not None and flt is not None
         ba, bg = obs.ba_hat_mps2, obs.bg_hat_rps
@@ -1201,7 +1204,7 @@ class ObserverEngine:
             flt.start(obs.c_bp9, self._ba_origin[2], biases, self._bias_filter_noise())
         row, prow = rows
         f_p = ((row[_SF_N] - prow[_SF_N]) / interval_s, (row[_SF_E] - prow[_SF_E]) / interval_s)
-        db = flt.epoch(t_e, e_ne, u_ne, f_p, obs.c_bp9, biases, self._fix_sigma_v(), obs.learn)
+        db = flt.epoch(t_e, e_ne, u_ne, f_p, obs.c_bp9, biases, sigma_v, obs.learn)
         obs.add_accel_bias_xy(*db)
         # The tilt a bias error holds (b / g) moves by what is learnt of it, and the loop
         # follows with its tau: until then the platform is off by the sum of the recent
@@ -1327,12 +1330,7 @@ class ObserverEngine:
         self._coasting = True
         self._held_forward = self._stop_ne_m = None
         self._end_rest()
-        fix = self._last_fix
-        sigma_v = (
-            self.cfg.gnss_vel_sigma_mps
-            if fix is None
-            else fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps)
-        )
+        sigma_v = self._fix_sigma_v()
         self._coast_budget = CoastBudget(
             sigma_p0_m=math.hypot(*self._position.sigma_ne_m()),
             sigma_v0_mps=math.hypot(sigma_v, self.cfg.dr_velocity_floor_mps),
