@@ -20,10 +20,11 @@ class ObserverConfig:
     with."""
 
     # --- Tereshkov observer (seed 000, section 4 values) ---
-    tau_s: float = 2.0  # attitude correction time constant tau = 1/(k g) (the paper: 4 s)
+    tau_s: float = 2.0  # tilt time constant tau = 1/(k g), s; second order: the shortest
     # e low-passed over tau / 4 before eq. (3) applies it: a critically damped second-order
-    # loop that passes less GNSS velocity noise, so it can be twice as fast (the product's
-    # extension: tilt_loop.py, docs/ACCURACY.md); false, with tau_s = 4: the paper's loop
+    # loop that passes less GNSS velocity noise, its tau the least-noise one for the IMU and
+    # each fix, tau_s to 4 tau_s (the product's extension: tilt_loop.py, docs/ACCURACY.md);
+    # false, with tau_s = 4: the paper's loop
     second_order_tilt_loop: bool = True
     tau_g_s: float = 40.0  # gyro bias observer time constant, eq. (11)
     omega_a_dps: float = 45.0  # accelerometer bias observer rate constant, eq. (12)
