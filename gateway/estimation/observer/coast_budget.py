@@ -42,6 +42,16 @@ class CoastBudget:
     sigma_psi_rad: float  # heading
     sigma_bz_rps: float  # z gyro bias: the heading error it adds
 
+    def sigma_u_mps(self, t_s: float) -> float:
+        """Forward speed 1-sigma ``t_s`` into the outage: the along-track terms' rate."""
+        t = max(t_s, 0.0)
+        return (
+            self.sigma_v0_mps
+            + self.sigma_a_mps2 * t
+            + 0.5 * GRAVITY_MPS2 * self.sigma_bg_rps * t * t
+            + 2.5 * GRAVITY_MPS2 * self.arw_rad_per_sqrt_s * t * math.sqrt(t / 20.0)
+        )
+
     def sigma_h_m(self, t_s: float, speed_mps: float) -> float:
         """Horizontal 1-sigma ``t_s`` into the outage, driving at ``speed_mps``."""
         t = max(t_s, 0.0)

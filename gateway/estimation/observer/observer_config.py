@@ -54,6 +54,10 @@ class ObserverConfig:
     # and low-speed course filters further up): below this, once the heading is known, the
     # speed is taken along body x, forward or reversing as the inertial velocity says
     course_hold_speed_mps: float = 0.5
+    # the reference point's lateral/vertical body velocity 1-sigma per 0.1 s while coasting
+    # (sideslip, bounce): the wheeled-vehicle constraint holds roll with the tilt loop's tau
+    # for it (ground_constraint.py); the EKF's nhc_sigma_mps
+    ground_sigma_mps: float = 0.05
 
     # --- IMU noise (ADIS16334 datasheet): roll/pitch sigma, heading gain, bias at rest ---
     gyro_arw_deg_per_sqrt_h: float = 2.0  # gyro angular random walk

@@ -68,6 +68,11 @@ from gateway.estimation.lever_arm import (
 )
 from gateway.estimation.observer.accel_bias_filter import AccelBiasFilter, BiasFilterNoise
 from gateway.estimation.observer.coast_budget import CoastBudget
+from gateway.estimation.observer.ground_constraint import (
+    GROUND_TILT_RAD,
+    GroundPeriod,
+    GroundResidual,
+)
 from gateway.estimation.observer.hdt_screen import HdtScreen
 from gateway.estimation.observer.heading_channel import HeadingChannel
 from gateway.estimation.observer.observer_config import ObserverConfig
@@ -214,6 +219,11 @@ class ObserverEngine:
         self._gyro_arw = arw  # rad/sqrt(s), the white rate noise measured where it is more
         self._tilt_loop = TiltLoop(cfg.tau_s, cfg.second_order_tilt_loop)
         self._tilt_loop.set_imu_noise(arw, 0.0)
+        # while coasting, on the wheeled-vehicle constraint: a loop of its own, so that what
+        # the GNSS loop still owes waits for GNSS (spent on the constraint, it moved pitch by
+        # the last epochs' along-track residual: `outages` reference point 8 % worse)
+        self._ground_loop = TiltLoop(cfg.tau_s, cfg.second_order_tilt_loop)
+        self._ground_loop.set_imu_noise(arw, 0.0)
         self._rest = RestWindow(arw)  # the specific force of a stop (_level_at_rest)
         self._noise = noise or ImuNoiseMeter()  # the IMU's white noise at rest, vibration too
         self._imu_dt_s = 0.0  # the IMU's sample period, s
@@ -249,6 +259,7 @@ class ObserverEngine:
         self._rest_last_row: _Row | None = None  # newest row at the last epoch at rest
         self._coasting = False  # GNSS velocity timed out: platform open loop
         self._coast_budget: CoastBudget | None = None  # error sources as the outage began
+        self._ground = GroundResidual()  # what the coast's constraint takes out: roll's e
         # learning gates and convergence bookkeeping
         self._learn_ok_since_s: float | None = None
         self._g_learn = 0.0  # integral of dt / tau_g while learning
@@ -459,11 +470,38 @@ class ObserverEngine:
         u_imu = c[0] * vn + c[3] * ve + c[6] * vd
         for i in range(3):
             vi[i] = c[3 * i] * u_imu + c[3 * i + 1] * lev_y + c[3 * i + 2] * lev_z
+        if dt > MAX_IMU_STEP_S:  # a bridged gap's velocity is no roll's: a new period
+            self._correct_tilt_on_the_ground(None, self._ground.restart() + dt)
+        else:
+            period = self._ground.add(vn - vi[0], ve - vi[1], wz, dt)
+            if period is not None:
+                self._correct_tilt_on_the_ground(period, period.span_s)
         u = u_imu - lev_x
         v, p = self._v_ned_mps, self._p_ned_m
         for i in range(3):
             v[i] = c[3 * i] * u
             p[i] += v[i] * dt
+
+    def _correct_tilt_on_the_ground(self, period: GroundPeriod | None, span_s: float) -> None:
+        """Eq. (3) on the wheeled-vehicle constraint's residual over the last ``span_s``
+        (:mod:`.ground_constraint`), in a loop of its own with the tau for the constraint's
+        noise; open where the forward speed's error would read as roll, and after a gap
+        (``period`` None). The accel-bias filter, open while coasting, is told the turn the
+        control gave the platform over the span."""
+        obs = self._observer
+        budget = self._coast_budget
+        assert obs is not None and budget is not None
+        if self._ba_filter is not None:
+            w = obs.w_p_rps
+            self._ba_filter.rotate((-w[0] * span_s, -w[1] * span_s, 0.0))
+        sigma_u_mps = budget.sigma_u_mps(self._coasting_s())
+        if period is None or sigma_u_mps * abs(period.w_z_rps) > GRAVITY_MPS2 * GROUND_TILT_RAD:
+            obs.open_tilt_loop()
+            return
+        u_ne = self._ground_loop.control(
+            period.e_ne_mps2, span_s, span_s, self.cfg.ground_sigma_mps
+        )
+        obs.correct_tilt(*u_ne)
 
     def _align_tilt(self, t: float, w: Float3, f: Float3) -> None:
         """Roll/pitch from the mean specific force over a quiet window, yaw 0 until COG/HDT.
@@ -857,7 +895,8 @@ class ObserverEngine:
         self._floor_scale = max(r_g, r_a)
         self._accel_psd = (sigma_a * r_a) ** 2 * dt
         self._rest.set_noise(self._gyro_arw, self._accel_psd)
-        self._tilt_loop.set_imu_noise(self._gyro_arw, self._accel_psd)
+        for loop in (self._tilt_loop, self._ground_loop):
+            loop.set_imu_noise(self._gyro_arw, self._accel_psd)
         if self._ba_filter is not None:
             self._ba_filter.noise = self._bias_filter_noise()
 
@@ -1328,6 +1367,8 @@ class ObserverEngine:
         self._settle_lever(obs.c_bp9, velocity_reset=False)
         self._lever_anchor = None  # the coast integrates the IMU point as such
         self._coasting = True
+        self._ground.restart()
+        self._ground_loop.clear()
         self._held_forward = self._stop_ne_m = None
         self._end_rest()
         sigma_v = self._fix_sigma_v()
