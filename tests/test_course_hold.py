@@ -116,3 +116,26 @@ def test_gentle_starts_out_of_stops_on_a_rough_engine_leave_no_tilt(seed: int) -
         assert sol.roll_rad is not None and sol.pitch_rad is not None
         tilt_deg = math.degrees(max(abs(sol.roll_rad - ROLL), abs(sol.pitch_rad - PITCH)))
         assert tilt_deg < 0.35, (sol.t, tilt_deg)
+
+
+def test_creeping_under_the_stationary_speed_is_motion_not_rest() -> None:
+    """After the stop the vehicle creeps off at 0.08 m/s for 10 s (0.8 m), under
+    ``stationary_speed_mps`` but four times the receiver's velocity noise, the course held
+    below 0.5 m/s. Every epoch there was taken as still (v = 0: the speed along body x was
+    only put where the speed was beyond ``stationary_speed_mps``), and the observer sent
+    0.0 m/s for the whole creep. An epoch is now still only where its speed is within the
+    noise: the creep's velocity is within 0.01 m/s of the truth from 1 s after the start,
+    and the tilt stays within 0.05 deg."""
+    creep_mps, start_s = 0.08, BRAKING_S + 4.0 + 10.0
+    segments = (*SEGMENTS[:4], Segment(10.0), Segment(0.5, accel_mps2=2.0 * creep_mps))
+    motion = Motion((*segments, Segment(10.0)), roll_rad=ROLL, pitch_rad=PITCH, yaw0_rad=YAW0)
+    fixes = with_course_held(gnss_stream(motion, antenna_lever_arm_m=LEVER), 0.5)
+    out = solutions(_engine("observer"), imu_stream(motion), fixes)
+    creeping = [s for t, s in out if t > start_s + 1.0]
+    assert len(creeping) > 40
+    for sol in creeping:
+        assert sol.vel_ned_mps is not None and sol.roll_rad is not None
+        assert sol.pitch_rad is not None
+        assert abs(math.hypot(sol.vel_ned_mps[0], sol.vel_ned_mps[1]) - creep_mps) < 0.01
+        tilt_deg = math.degrees(max(abs(sol.roll_rad - ROLL), abs(sol.pitch_rad - PITCH)))
+        assert tilt_deg < 0.05, (sol.t, tilt_deg)
