@@ -14,7 +14,12 @@ from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, MG_MPS2, SQRT_SECONDS_PER_HO
 from gateway.demo.accuracy import evaluate
 from gateway.estimation.attitude import Mat9
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
-from gateway.estimation.observer.accel_bias_filter import AccelBiasFilter, BiasFilterNoise
+from gateway.estimation.observer.accel_bias_filter import (
+    NIS_WINDOW_Z,
+    AccelBiasFilter,
+    BiasFilterNoise,
+    chi_square_quantile,
+)
 from sim_bus.scenarios import SCENARIOS
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
@@ -38,12 +43,13 @@ def level_c9(psi: float) -> Mat9:
 
 def loop_run(
     bias_b: tuple[float, float], turns: int, seed: int = 0
-) -> tuple[list[tuple[float, np.ndarray, float]], np.ndarray]:
+) -> tuple[list[tuple[float, np.ndarray, float, bool]], np.ndarray]:
     """Seed 000's tilt loop on level ground, one horizontal tilt error x (as a specific force,
     NED) corrected by e / tau each epoch, with the filter learning the body's x/y bias: 60 s
     straight, then ``turns`` U-turns (two 5 s quarter turns each, alternately left and right)
     between 30 s straights. Levelled at rest on the bias (x = -C b). Returns (time, bias
-    estimate, filter sigma) per epoch, and the true bias."""
+    estimate, filter sigma, whether the filter finds its innovations inconsistent) per epoch,
+    and the true bias."""
     rng = np.random.default_rng(seed)
     b = np.array(bias_b)
     b_hat = np.zeros(2)
@@ -78,14 +84,14 @@ def loop_run(
                        (*b_hat, 0.0, 0.0, 0.0), SIGMA_V, learn=True)  # fmt: skip
         b_hat = b_hat + np.array(db)
         e_applied = e
-        out.append((t, b_hat.copy(), flt.sigma_mps2))
+        out.append((t, b_hat.copy(), flt.sigma_mps2, flt.inconsistent()))
     return out, b
 
 
 def test_nothing_is_learnt_before_the_heading_changes() -> None:
     """Until the first turn a bias and the tilt it levelled are one quantity (x = -C b)."""
     out, _ = loop_run((0.03, -0.02), turns=0)
-    t, b_hat, sigma = out[-1]
+    t, b_hat, sigma, _ = out[-1]
     assert t == pytest.approx(60.0)
     assert np.max(np.abs(b_hat)) < 2.0 * MG_MPS2  # of 3 mg / -2 mg true
     assert sigma > 0.09  # the 0.1 m/s^2 it started with
@@ -94,14 +100,23 @@ def test_nothing_is_learnt_before_the_heading_changes() -> None:
 @pytest.mark.parametrize("seed", [1, 2, 3])
 def test_turns_both_ways_find_the_bias_within_its_sigma(seed: int) -> None:
     out, b = loop_run((0.03, -0.02), turns=6, seed=seed)
-    _, b_hat, sigma = out[-1]
+    _, b_hat, sigma, _ = out[-1]
     err = b_hat - b
     assert np.max(np.abs(err)) < 1.0 * MG_MPS2
     assert np.max(np.abs(err)) < 3.0 * sigma
     assert sigma < 1.0 * MG_MPS2
     # the first U-turn alone takes out most of it
-    after_first = next(bh for tt, bh, _ in out if tt >= 60.0 + 10.0 + 30.0)
+    after_first = next(bh for tt, bh, _, _ in out if tt >= 60.0 + 10.0 + 30.0)
     assert np.max(np.abs(after_first - b)) < 0.3 * np.max(np.abs(b))
+    assert not any(bad for _, _, _, bad in out)  # a consistent filter's innovations
+
+
+def test_the_window_bound_is_the_chi_square_quantile() -> None:
+    """Wilson-Hilferty against the chi-square quantiles at z = 4.75 (scipy's, 1.02e-6): 2
+    degrees of freedom 27.6 (the per-epoch gate), 10: 46.8, 100: 182.1 (10 s at 10 Hz)."""
+    assert chi_square_quantile(2, NIS_WINDOW_Z) == pytest.approx(27.6, rel=0.1)
+    assert chi_square_quantile(10, NIS_WINDOW_Z) == pytest.approx(46.8, rel=0.03)
+    assert chi_square_quantile(100, NIS_WINDOW_Z) == pytest.approx(182.1, rel=0.003)
 
 
 def test_a_platform_turned_by_the_engine_is_not_read_as_bias() -> None:

@@ -66,7 +66,11 @@ from gateway.estimation.lever_arm import (
     reference_from_antenna,
     velocity_at,
 )
-from gateway.estimation.observer.accel_bias_filter import AccelBiasFilter, BiasFilterNoise
+from gateway.estimation.observer.accel_bias_filter import (
+    NIS_WINDOW_S,
+    AccelBiasFilter,
+    BiasFilterNoise,
+)
 from gateway.estimation.observer.coast_budget import CoastBudget
 from gateway.estimation.observer.ground_constraint import (
     GROUND_TILT_RAD,
@@ -138,6 +142,9 @@ ACCEL_BIAS_Z_FLOOR_MPS2 = 0.003
 #: The x/y accelerometer bias estimate tells the size of the turn-on bias once the learning
 #: exponent has taken out this much of it (:meth:`ObserverEngine._sigma_ba_mps2`).
 SHOWN_BIAS_MIN_LEARNT = 0.2
+#: The accel-bias filter's inconsistency re-opens the x/y biases once it states them within
+#: this share of the turn-on sigma: before, re-opening them would change nothing.
+REOPEN_ARMED_SHARE = 0.5
 #: The IMU noise measured at rest is logged when its excess over the config's has changed by
 #: more than this (relative) since it was last logged: it is measured again at every stop.
 NOISE_TOLD_CHANGE = 0.25
@@ -1254,6 +1261,21 @@ class ObserverEngine:
         f_p = ((row[_SF_N] - prow[_SF_N]) / interval_s, (row[_SF_E] - prow[_SF_E]) / interval_s)
         db = flt.epoch(t_e, e_ne, u_ne, f_p, obs.c_bp9, biases, sigma_v, obs.learn)
         obs.add_accel_bias_xy(*db)
+        sigma0, learnt = self.cfg.accel_bias_sigma0_mps2, flt.sigma_mps2
+        if learnt < REOPEN_ARMED_SHARE * sigma0 and flt.inconsistent():
+            # the residual is not that of the biases the filter holds learnt: re-opened to
+            # the turn-on spread, so the stated tilt covers them and turns learn them again
+            flt.reopen(sigma0, 0.0, obs.c_bp9, absorbed=False)
+            flt.clear_window()
+            self.counters.bias_changes += 1
+            self._log.warning(
+                t_e,
+                f"IMU bias change at t={t_e:.3f}: the tilt loop's residual over "
+                f"{NIS_WINDOW_S:g} s is beyond what the learnt x/y accelerometer biases "
+                f"({learnt:.3f} m/s^2 1-sigma) explain; re-opened to {sigma0:.3f} m/s^2, "
+                "the roll/pitch accuracy sent with them, and learnt again in the next turns",
+                "bias change",
+            )
         # The tilt a bias error holds (b / g) moves by what is learnt of it, and the loop
         # follows with its tau: until then the platform is off by the sum of the recent
         # corrections, N/E, decaying with the loop (a first turn with seed 000's 0.2 m/s^2
