@@ -22,6 +22,10 @@ and stops have learnt the biases again. No change was found on any run of the ac
 benchmark (ten scenarios, seeds 1-3, both engines); on `field` seed 3 the largest 5 s sums
 were 0.29 deg (observer) and 0.27 deg (EKF), where the limit was 0.7-0.8 deg. The observer
 judges only while its learning gates are open (single-point velocities gave 1 deg in 5 s).
+A step while the biases are still being learnt keeps the sum at 3-4 sigma for seconds, the
+stated tilt being up with the learning: ``K_SUSTAINED`` for ``SUSTAINED_S`` is a change too
+(the observer's accel-bias filter also watches its own innovations,
+:meth:`gateway.estimation.observer.accel_bias_filter.AccelBiasFilter.inconsistent`).
 """
 
 from __future__ import annotations
@@ -40,6 +44,13 @@ WINDOW_S = 5.0
 #: noisy as the datasheet (the robustness benchmark's imu-noise-x2, seed 17) reached about
 #: 3.7 with the EKF; the steps of `tests/test_bias_change.py` 6-8.
 K_SIGMA = 5.0
+#: A sum beyond this many sigma for :data:`SUSTAINED_S` without a break is a change too: a
+#: step found while the biases are being learnt keeps the corrections up for seconds at 3.3-3.7
+#: sigma (+20 mg on y in a cold start's second turn, the EKF), where the noisiest IMU of the
+#: robustness benchmark (imu-noise-x2, seed 17) reached 3.2 for 0.5 s; no accuracy-benchmark
+#: run reached 2.5.
+K_SUSTAINED = 3.0
+SUSTAINED_S = 2.0
 #: A change found again this soon (s) after one is not re-opened again, only logged: the
 #: biases re-learnt after a step quieten the corrections, and what keeps them up is a
 #: standing mismatch (an IMU mounting the config lacks puts the EKF's no-sideslip constraint
@@ -73,6 +84,7 @@ class TiltCorrections:
         self._sum_n = self._sum_e = 0.0
         self.tilt_rad = 0.0  # the window's sum, horizontal magnitude
         self._t_change_s = -math.inf  # the last change that re-opened the biases
+        self._above_since_s: float | None = None  # beyond K_SUSTAINED since then
 
     def add(self, t_s: float, d_n_rad: float, d_e_rad: float, sigma_tilt_rad: float) -> None:
         """A correction applied at ``t_s`` with the tilt 1-sigma stated before it; those
@@ -98,6 +110,7 @@ class TiltCorrections:
         self._recent.clear()
         self._sigmas.clear()
         self._sum_n = self._sum_e = self.tilt_rad = 0.0
+        self._above_since_s = None
 
     def explained_rad(
         self, arw_rad_per_sqrt_s: float, sigma_bg_rps: float, sigma_tilt_rad: float
@@ -125,14 +138,22 @@ class TiltCorrections:
     def check(
         self, arw_rad_per_sqrt_s: float, sigma_bg_rps: float, sigma_tilt_rad: float
     ) -> BiasChange | None:
-        """The window's sum if beyond ``K_SIGMA`` times :meth:`explained_rad`; the window is
-        then cleared (the next one starts after the change)."""
+        """The window's sum if beyond ``K_SIGMA`` times :meth:`explained_rad`, or beyond
+        ``K_SUSTAINED`` times it for ``SUSTAINED_S``; the window is then cleared (the next one
+        starts after the change)."""
         tilt = self.tilt_rad
-        if tilt <= K_SIGMA * sigma_tilt_rad or tilt <= K_SIGMA * self.explained_rad(
-            arw_rad_per_sqrt_s, sigma_bg_rps, sigma_tilt_rad
-        ):
+        if tilt <= K_SUSTAINED * sigma_tilt_rad:
+            self._above_since_s = None
             return None
+        ratio = tilt / self.explained_rad(arw_rad_per_sqrt_s, sigma_bg_rps, sigma_tilt_rad)
         t_s = self._recent[-1][0]
+        if ratio <= K_SUSTAINED:
+            self._above_since_s = None
+            return None
+        if self._above_since_s is None:
+            self._above_since_s = t_s
+        if ratio <= K_SIGMA and t_s - self._above_since_s < SUSTAINED_S:
+            return None
         again = t_s - self._t_change_s < REOPEN_HOLD_S
         if not again:
             self._t_change_s = t_s
