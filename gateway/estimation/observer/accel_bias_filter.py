@@ -308,7 +308,9 @@ class AccelBiasFilter:
         pass :data:`NIS_GATE`: +20 mg on y in a cold start's second turn, the bias learnt
         to 0.015 m/s^2 in the first, summed to 245 over 5 s against 100 expected, each
         epoch under 21, and the filter learnt a third of it, stating 0.012 (`short` seed
-        5). On the accuracy benchmark's runs the largest sum was 0.91 of the bound."""
+        5). Where the engine acts on it (the biases learnt), the largest sum on the accuracy
+        benchmark's runs was 0.91 of the bound (slope-start seed 1 reached 1.20 at 22 s,
+        before its first turn: nothing learnt yet to re-open)."""
         n = len(self._nis)
         if n == 0:
             return False
