@@ -762,16 +762,13 @@ class EkfEngine:
         p, ins = self._p, self._ins
         assert p is not None and ins is not None
         c_bn = ins.c_bn
-        j = np.zeros((N_STATES, 2))  # the error per unit x/y accelerometer bias change
-        j[BA.start : BA.start + 2] = np.eye(2)
+        j = np.zeros((N_STATES, 2))  # tilt and IMU position error per unit x/y bias change
         j[ATT] = _tilt_of_accel_bias(c_bn)[:, :2]
         j[POS] = skew(c_bn @ self._l_imu_ant_b) @ j[ATT]
         sigma_a, sigma_g = GRAVITY_MPS2 * change.tilt_rad, change.rate_rps
-        j_b, j_t = j.copy(), j.copy()
-        j_b[ATT] = 0.0
-        j_b[POS] = 0.0
-        j_t[BA] = 0.0
-        p += sigma_a * sigma_a * (j_b @ j_b.T + j_t @ j_t.T)
+        p += sigma_a * sigma_a * (j @ j.T)
+        for i in (BA.start, BA.start + 1):
+            p[i, i] += sigma_a * sigma_a
         for i in (BG.start, BG.start + 1):
             p[i, i] += sigma_g * sigma_g
         self.counters.bias_changes += 1
