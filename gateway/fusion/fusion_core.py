@@ -9,8 +9,9 @@ come; frames received from the ISOBUS go to the address claim, then to the
 sends the heartbeat (looked at per IMU sample and poll with one comparison). While the claim
 has seen a clone of us (our NAME, or frames from our address that we did not send),
 NAVGW_STATUS says DEGRADED; so it does once the drive has shown the IMU mounting in effect
-tilted off the vehicle's axes (:mod:`gateway.fusion.mounting_check`, fed each fix with the
-engine's next solution made for the bus: none made for it alone).
+tilted off the vehicle's axes (:mod:`gateway.fusion.mounting_check`), or the antenna's height
+above the reference point off the configured lever arm (:mod:`gateway.fusion.lever_arm_check`),
+each fed each fix with the engine's next solution made for the bus: none made for it alone.
 
 Frames come back as iterators that encode as they are taken: a caller that sends while it
 iterates puts the attitude on the bus first (see :meth:`OutputScheduler.frames`).
@@ -62,6 +63,7 @@ from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.solution import LearnedState, LearningEstimator, Mode, Solution
 from gateway.fusion.engines import epoch_clock, make_engine
+from gateway.fusion.lever_arm_check import LeverArmCheck
 from gateway.fusion.mounting_check import MountingCheck
 from gateway.fusion.output_guard import OutputGuard
 from gateway.fusion.rest_check import (
@@ -148,9 +150,11 @@ class FusionCore:
         warm_start: WarmStart | None = None,
         track_rest: bool = False,
         mounting: MountingCheck | None = None,
+        lever_arm: LeverArmCheck | None = None,
     ) -> None:
         """``track_rest``: follow the rests for the learned state (the shell keeps one);
-        ``mounting``: the check of the IMU mounting in effect (None: none)."""
+        ``mounting``, ``lever_arm``: the checks of the IMU mounting and of the antenna lever
+        arm in effect (None: none)."""
         self.engine = engine
         self._make_engine = make_engine  # for a restart; None: the engine carries on
         self.scheduler = scheduler
@@ -172,7 +176,8 @@ class FusionCore:
         self.rest = RestMean() if track_rest or warm_start is not None else None
         self._pending_seed: WarmSeed | None = None  # to check at rest on the same spot
         self.mounting = mounting
-        self._fix_to_check: GnssFix | None = None  # for the mounting, with the next solution
+        self.lever_arm = lever_arm
+        self._fix_to_check: GnssFix | None = None  # for the checks, with the next solution
 
     @classmethod
     def from_config(
@@ -226,6 +231,7 @@ class FusionCore:
             mounting=MountingCheck(
                 config.vehicle.antenna_lever_arm_m, config.vehicle.imu_mounting_sigma_deg
             ),
+            lever_arm=LeverArmCheck(config.vehicle.antenna_lever_arm_m),
         )
 
     def start(self, now: float) -> Iterator[can.Message]:
@@ -241,7 +247,7 @@ class FusionCore:
         if isinstance(item, GnssFix):
             self.stats.gnss_fixes += 1
             self.engine.gnss(item)
-            if self.mounting is not None:
+            if self.mounting is not None or self.lever_arm is not None:
                 self._fix_to_check = item
             if self.rest is not None:
                 self.rest.gnss(item)
@@ -309,6 +315,8 @@ class FusionCore:
             self._restart_engine(last if gap else None, t)
         self._last_sample = sample
         self.engine.imu(sample)
+        if self.lever_arm is not None:
+            self.lever_arm.imu(t, sample.w_ib_b)
         rest = self.rest
         if rest is not None:
             rest.imu(sample)
@@ -323,16 +331,28 @@ class FusionCore:
             return self._counted(polled) if polled else NOTHING
         sol = self.engine.solution()
         if self._fix_to_check is not None:
-            self._check_mounting(sol)
+            self._check_geometry(sol)
         sent = self._attributable(self.guard.check(sol), t)
         frames = self.scheduler.frames(sent, self.loop_status(t), now=self._told(sent.mode))
         return self._counted(chain(polled, frames) if polled else frames)
 
-    def _check_mounting(self, sol: Solution) -> None:
-        """The last fix, with the first solution after it (one output period at most)."""
-        assert self.mounting is not None and self._fix_to_check is not None
-        self.mounting.epoch(self._fix_to_check, sol)
+    def _check_geometry(self, sol: Solution) -> None:
+        """The last fix, with the first solution after it (one output period at most), to
+        the checks of the mounting and the lever arm."""
+        fix = self._fix_to_check
+        assert fix is not None
+        if self.mounting is not None:
+            self.mounting.epoch(fix, sol)
+        if self.lever_arm is not None:
+            self.lever_arm.epoch(fix, sol)
         self._fix_to_check = None
+
+    @property
+    def geometry_off(self) -> bool:
+        """The drive has shown the IMU mounting or the antenna lever arm in effect off."""
+        return (self.mounting is not None and self.mounting.off) or (
+            self.lever_arm is not None and self.lever_arm.off
+        )
 
     def _on_unusable(self, sample: ImuSample) -> Iterator[can.Message]:
         """A saturated or stuck sample: not fed to the engine; NAVGW_STATUS says FAULT."""
@@ -397,8 +417,9 @@ class FusionCore:
         """``sol``, DEGRADED (or worse) while another node recently claimed our NAME or sent
         from our address: a controller cannot tell which frames with our address are ours.
         DEGRADED, not FAULT: our own solution is sound, and FAULT would say it is not. So
-        too once the mounting in effect was seen off: roll and pitch are off by it."""
-        if self.claimer.conflict(now) or (self.mounting is not None and self.mounting.off):
+        too once the mounting or the lever arm in effect was seen off: roll and pitch are off
+        by it."""
+        if self.claimer.conflict(now) or self.geometry_off:
             return replace(sol, mode=max(sol.mode, Mode.DEGRADED))
         return sol
 

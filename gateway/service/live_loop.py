@@ -633,6 +633,8 @@ class GatewayService:
         if (check := self.core.mounting) is not None and check.off:
             off = "; ".join(o.text() for o in check.found)
             parts.append(f"degraded: the drive shows the IMU mounting in effect off ({off})")
+        if (arm := self.core.lever_arm) is not None and arm.found is not None:
+            parts.append(f"degraded: the drive shows the antenna at {arm.found.text()}")
         if self.mounting is not None:
             parts.append(self.mounting.summary)  # says if a mounting was applied from state
         elif self.applied is not None:
