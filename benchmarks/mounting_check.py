@@ -19,7 +19,7 @@ import dataclasses
 import math
 import sys
 import tempfile
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
@@ -62,33 +62,47 @@ def judge(
     return out
 
 
-def judge_run(
-    imu_log: Path, gnss_log: Path, config: GatewayConfig
-) -> tuple[float | None, str, dict[str, float]]:
-    """One replay through the core as ``navgw replay`` runs it, the check's verdicts looked
-    at every ``CHECK_INTERVAL_S`` of input time."""
+def replay_core(
+    imu_log: Path, gnss_log: Path, config: GatewayConfig, look: Callable[[FusionCore, float], None]
+) -> None:
+    """One replay through the core as ``navgw replay`` runs it, ``look`` called after every
+    input with the core and the input's time (s from the first)."""
     inputs = LogInputs(imu_log, gnss_log, imu_config(config))
     core = FusionCore.from_config(config, inputs.imu_lost)
     inputs.own_name, inputs.own_address = core.claimer.name, config.isobus.preferred_address
-    check = core.mounting
-    assert check is not None
     t0: float | None = None
-    off_s: float | None = None
-    ratios = dict.fromkeys(AXES, 0.0)
-    next_look = -math.inf
     for x in inputs:
         if t0 is None:
             t0 = x.t
             list(core.start(x.t))
         list(core.on_input(x))
-        if x.t >= next_look:
-            next_look = x.t + CHECK_INTERVAL_S
+        look(core, x.t - t0)
+
+
+def judge_run(
+    imu_log: Path, gnss_log: Path, config: GatewayConfig
+) -> tuple[float | None, str, dict[str, float]]:
+    """The mounting check's verdict (when off, s from the start, or None), the axes it named,
+    and the largest ratio per axis, looked at every ``CHECK_INTERVAL_S`` of input time."""
+    ratios = dict.fromkeys(AXES, 0.0)
+    off_s: float | None = None
+    next_look = -math.inf
+    found = ""
+
+    def look(core: FusionCore, t_s: float) -> None:
+        nonlocal off_s, next_look, found
+        check = core.mounting
+        assert check is not None
+        found = " ".join(f.axis for f in check.found)
+        if t_s >= next_look:
+            next_look = t_s + CHECK_INTERVAL_S
             for off in check.judged():
                 ratios[off.axis] = max(ratios[off.axis], off.ratio)
         if off_s is None and check.off:
-            off_s = x.t - t0
-    names = " ".join(f.axis for f in check.found)
-    return off_s, names, ratios
+            off_s = t_s
+
+    replay_core(imu_log, gnss_log, config, look)
+    return off_s, found, ratios
 
 
 def main(argv: Sequence[str] | None = None) -> None:
