@@ -18,6 +18,7 @@ from pathlib import Path
 import can
 import pytest
 
+from gateway.config.gateway_config import load_config
 from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 
@@ -94,8 +95,9 @@ def prepare(out: Path) -> Path:
     scenario = dataclasses.replace(
         base, vehicle=dataclasses.replace(base.vehicle, n_passes=2, start_stop_s=15.0)
     )
-    generate(scenario, out, seed=11)
-    replay(out / "imu.log", out / "gnss.nmea", out / "gateway.log")
+    run = generate(scenario, out, seed=11)
+    # with the vehicle's config: without its 3 m mast the gateway would rightly say DEGRADED
+    replay(run.imu_log, run.gnss_log, out / "gateway.log", load_config(run.config_file))
     return out
 
 
