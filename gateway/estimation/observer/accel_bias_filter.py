@@ -34,7 +34,9 @@ what else moves the bias estimates (eq. 11, a zero-rate update, the z height loo
 their change between epochs. The estimated x/y bias error is handed back for the observer to
 apply (an error-state filter: the state then returns to zero). Until the first turn x and
 C_h db are one quantity: the filter starts with them correlated as a levelling leaves them
-(x = -C_h db), so nothing is learnt before the heading changes.
+(x = -C_h db), so nothing is learnt before the heading changes; the engine starts it only
+once the heading has held for the learning hold-off (in a turn the tilt of a bias error
+turns with the body, and the loop lags it).
 
 A bias that steps while the filter holds it learnt is outside the model. No epoch's
 innovation need pass the gate, but their sum over :data:`NIS_WINDOW_S` does
