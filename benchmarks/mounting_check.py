@@ -64,9 +64,9 @@ def judge(
 
 def replay_core(
     imu_log: Path, gnss_log: Path, config: GatewayConfig, look: Callable[[FusionCore, float], None]
-) -> None:
+) -> FusionCore:
     """One replay through the core as ``navgw replay`` runs it, ``look`` called after every
-    input with the core and the input's time (s from the first)."""
+    input with the core and the input's time (s from the first); the core at the end."""
     inputs = LogInputs(imu_log, gnss_log, imu_config(config))
     core = FusionCore.from_config(config, inputs.imu_lost)
     inputs.own_name, inputs.own_address = core.claimer.name, config.isobus.preferred_address
@@ -77,6 +77,7 @@ def replay_core(
             list(core.start(x.t))
         list(core.on_input(x))
         look(core, x.t - t0)
+    return core
 
 
 def judge_run(
@@ -87,13 +88,11 @@ def judge_run(
     ratios = dict.fromkeys(AXES, 0.0)
     off_s: float | None = None
     next_look = -math.inf
-    found = ""
 
     def look(core: FusionCore, t_s: float) -> None:
-        nonlocal off_s, next_look, found
+        nonlocal off_s, next_look
         check = core.mounting
         assert check is not None
-        found = " ".join(f.axis for f in check.found)
         if t_s >= next_look:
             next_look = t_s + CHECK_INTERVAL_S
             for off in check.judged():
@@ -101,8 +100,9 @@ def judge_run(
         if off_s is None and check.off:
             off_s = t_s
 
-    replay_core(imu_log, gnss_log, config, look)
-    return off_s, found, ratios
+    check = replay_core(imu_log, gnss_log, config, look).mounting
+    assert check is not None
+    return off_s, " ".join(f.axis for f in check.found), ratios
 
 
 def main(argv: Sequence[str] | None = None) -> None:

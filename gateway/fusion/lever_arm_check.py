@@ -28,8 +28,8 @@ on, the ground), :attr:`LeverArmCheck.off` is set, latched (the config does not 
 while the service runs), and the core sends DEGRADED. On smooth ground there is no roll
 rate to judge by, and no lever-arm error to fear from it either.
 
-The rates are the IMU's own, each epoch's the mean over the 0.1 s before it (a comparison
-and four additions per sample; their bias drops out of the changes); not the solutions' attitude
+The rates are the IMU's own, each epoch's the mean over the 0.1 s before it (a comparison,
+three sums and a count per sample; their bias drops out of the changes); not the solutions' attitude
 differenced, which holds the engine's tilt corrections, made from the same GNSS velocities.
 """
 
@@ -95,7 +95,7 @@ class LeverArmFit:
         """E.g. ``2.98 +/- 0.05 m above the reference point, configured 0.00 m``."""
         return (
             f"{self.height_m:.2f} +/- {self.sigma_m:.2f} m above the reference point, "
-            f"configured {self.configured_m + 0.0:.2f} m"
+            f"configured {self.configured_m:.2f} m"
         )
 
 
@@ -105,7 +105,7 @@ class LeverArmCheck:
     the configured one."""
 
     def __init__(self, antenna_lever_arm_m: Float3) -> None:
-        self.configured_height_m = -antenna_lever_arm_m[2]
+        self.configured_height_m = 0.0 - antenna_lever_arm_m[2]  # 0.0, not -0.0, for z = 0
         self.found: LeverArmFit | None = None  # the fit that showed it off
         # normal equations of d(v_lat) = a d(w_x) + b d(w_z): sums of xx, xz, zz, xy, zy, yy
         self._sums = [0.0] * 6
