@@ -47,7 +47,8 @@ class Motion:
     """Segments driven from speed ``v0_mps`` and heading ``yaw0_rad`` at constant roll/pitch.
 
     Speeds and accelerations are horizontal; the vehicle moves along its body x axis, as a
-    wheeled one does, so with pitch it climbs (or descends) tan(pitch) per metre. Roll may
+    wheeled one does, so with pitch it climbs (or descends) tan(pitch - chassis pitch) per
+    metre (the chassis's own pitch against its track: a load, a lifted implement). Roll may
     rock about the reference point: roll + rock sin(2 pi rock_hz t)."""
 
     segments: Sequence[Segment]
@@ -57,6 +58,7 @@ class Motion:
     pitch_rad: float = 0.0
     rock_rad: float = 0.0  # amplitude of a roll rocking about the reference point (rough ground)
     rock_hz: float = 0.0
+    chassis_pitch_rad: float = 0.0
 
     @property
     def duration_s(self) -> float:
@@ -122,7 +124,7 @@ def state_at(motion: Motion, t: npt.ArrayLike) -> State:
     yaw = psi0[i] + rate[i] * tau
     cy, sy = np.cos(yaw), np.sin(yaw)
     r, th = motion.roll_rad, motion.pitch_rad
-    down = -math.tan(th)  # down per metre driven
+    down = -math.tan(th - motion.chassis_pitch_rad)  # down per metre driven
     dist = d0[i] + v0[i] * tau + 0.5 * acc[i] * tau**2
     n = len(tt)
     p_ned = np.stack((p0[i, 0] + dn, p0[i, 1] + de, down * dist), axis=1)

@@ -34,9 +34,32 @@ what else moves the bias estimates (eq. 11, a zero-rate update, the z height loo
 their change between epochs. The estimated x/y bias error is handed back for the observer to
 apply (an error-state filter: the state then returns to zero). Until the first turn x and
 C_h db are one quantity: the filter starts with them correlated as a levelling leaves them
-(x = -C_h db), so nothing is learnt before the heading changes; the engine starts it only
+(x = -C_h db), so e teaches it nothing before the heading changes; the engine starts it only
 once the heading has held for the learning hold-off (in a turn the tilt of a bias error
 turns with the body, and the loop lags it).
+
+Until the first turn nothing in e tells an x bias from a pitch (eq. 8): a wheeled vehicle's
+track does. It drives along its own x axis, so the height its reference point gains is
+tan(pitch) per metre along x, less the chassis's own pitch against its track (a lifted
+implement, ballast: up to about 0.5 deg), whatever the accelerometer's bias. Two more states:
+
+    dh       the height the platform gives the track since the height chain began (no
+             velocity along body z: tan(pitch) per metre along x), less the fix's, m
+    dth      the chassis's pitch against its track, rad (random walk: an implement lifted at
+             a headland moves it)
+
+    dh'  = -(v . x) / g + v_x dth
+    dth' = n_th
+
+with v the reference point's horizontal velocity (N/E) and v_x its part along body x (signed:
+reversing); -(v . x) / g is what the tilt error makes of the height rate (along body x the
+pitch error, across it, where a side slope's crabbing moves the vehicle, the roll's). The
+height chain telescopes as the velocity chain does: the measurement is the chain's
+residual, its noise the last height's alone. It is weighed once a second (RTK heights are
+correlated over seconds, not white at 10 Hz). Before the first turn it
+takes a gross x bias out of the pitch down to the chassis's prior (an ADIS16334 unit 4.9
+sigma of the turn-on prior sent pitch 2.9 deg off for two minutes); after the turns the
+biases are known and it measures the chassis's pitch.
 
 A bias that steps while the filter holds it learnt is outside the model. No epoch's
 innovation need pass the gate, but their sum over :data:`NIS_WINDOW_S` does
@@ -58,8 +81,16 @@ from gateway.estimation.attitude import Mat9
 
 Array = npt.NDArray[np.float64]
 
-N_STATES = 10
+N_STATES = 12
 _DV, _X, _DB, _DG, _DBZ, _DPSI = slice(0, 2), slice(2, 4), slice(4, 6), slice(6, 8), 8, 9
+_DH, _DTH = 10, 11
+#: The height chain's residual is weighed this often, s (RTK heights are correlated over
+#: seconds: weighed at 10 Hz as white, their noise would be taken for the track's) ...
+HEIGHT_UPDATE_S = 1.0
+#: ... and one beyond this (squared Mahalanobis length, 1 degree of freedom: 3 sigma) is not
+#: the model's (a height step): the height chain starts again, which costs a few seconds of a
+#: slow measurement, where a step taken for a climb would kick the pitch.
+HEIGHT_GATE = 9.0
 #: An innovation beyond this (its squared Mahalanobis length, chi-square with 2 degrees of
 #: freedom: 1e-6 of a consistent filter's epochs) is not the model's: the tilt is taken as lost.
 NIS_GATE = 27.6
@@ -90,6 +121,23 @@ class BiasFilterNoise:
     gyro_bias_sigma0_rps: float = 0.02 * DEG_TO_RAD
     heading_sigma_rad: float = 0.3 * DEG_TO_RAD  # the heading channel's, Gauss-Markov ...
     heading_correlation_s: float = 10.0  # ... held by the course over ground
+    # The chassis's pitch against its track (tyres, ballast, a lifted implement: up to about
+    # 0.5 deg, gateway.fusion.mounting_check), 1-sigma, and the time it takes to wander by
+    # that much (a random walk)
+    chassis_pitch_sigma_rad: float = 0.25 * DEG_TO_RAD
+    chassis_pitch_wander_s: float = 120.0
+
+
+@dataclass(frozen=True, slots=True)
+class TrackEpoch:
+    """The reference point's track at one epoch, for the climb-angle measurement of pitch."""
+
+    height_m: float  # the reference point's height from the fix (antenna less C l_ant)
+    sigma_h_m: float  # the fix's height 1-sigma
+    v_ne_mps: tuple[float, float]  # the reference point's horizontal velocity, N/E
+    v_x_mps: float  # ... along body x (signed)
+    climb_mps: float  # the height rate the platform gives it: no velocity along body z
+    source: tuple[int, int | None]  # fix quality, base station: a change starts a new chain
 
 
 class AccelBiasFilter:
@@ -110,6 +158,10 @@ class AccelBiasFilter:
         self._seen = np.zeros(5)  # b_a x, y, z and b_g x, y as last handed over
         self._nis: deque[tuple[float, float]] = deque()  # (t, NIS) of the window's epochs
         self._nis_sum = 0.0
+        self._track: TrackEpoch | None = None  # the height chain's last epoch
+        self._climb_m = 0.0  # the height the platform gives the track over the chain, m
+        self._h0_m = 0.0  # the height at its start, m
+        self._t_height_s = 0.0  # its last weighed residual's time, s
 
     def start(
         self,
@@ -133,9 +185,11 @@ class AccelBiasFilter:
         p[_DG, _DG] = n.gyro_bias_sigma0_rps**2 * np.eye(2)
         p[_DBZ, _DBZ] = sb2
         p[_DPSI, _DPSI] = n.heading_sigma_rad**2
+        p[_DTH, _DTH] = n.chassis_pitch_sigma_rad**2
         self._set_p(p)
         self._s[:] = 0.0
         self._chained = False
+        self._track = None
         self._t_s = None
         self._seen = np.array(biases, dtype=float)
         self.started = True
@@ -227,11 +281,13 @@ class AccelBiasFilter:
         biases: tuple[float, float, float, float, float],
         vel_sigma_mps: float,
         learn: bool,
+        track: TrackEpoch | None = None,
     ) -> tuple[float, float]:
         """One closed-loop epoch at ``t_s``: ``e`` over the interval since the last, ``u``
         the e the loop now corrects with (the engine's :class:`.tilt_loop.TiltLoop`), ``f_p``
         the interval's mean horizontal specific force, the
-        estimates b_a x, y, z and b_g x, y as they are, the fix's velocity 1-sigma. With
+        estimates b_a x, y, z and b_g x, y as they are, the fix's velocity 1-sigma, the
+        track (None: no height, or no heading yet; the height chain starts again). With
         ``learn`` (the engine's gates open) the epoch is weighed and the x/y accelerometer bias
         correction to add to the estimate is returned, m/s^2; else (0, 0)."""
         seen = np.array(biases, dtype=float)
@@ -242,11 +298,18 @@ class AccelBiasFilter:
         self._seen = seen
         e = np.array(e_ne_mps2, dtype=float)
         if self._chained:
-            dt = self._advance(t_s, f_p_ne_mps2, c9)
+            along = self._along_track(t_s, track)
+            dt = self._advance(t_s, f_p_ne_mps2, c9, along)
             self._r += e * dt
             if learn and not self._update(t_s, vel_sigma_mps):
                 self.lose_tilt(t_s, c9)  # and a new chain from here
+            elif along is not None and track is not None:
+                self._climb_m += along[3] * dt
+                if learn and t_s - self._t_height_s >= HEIGHT_UPDATE_S:
+                    self._update_height(t_s, track)
+                self._track = track
         if not self._chained:
+            self._start_height(t_s, track)
             self._advance(t_s, (0.0, 0.0), c9)  # the loop was open since the last
             self._s[_DV] = 0.0
             self._p[_DV, :] = 0.0
@@ -262,15 +325,72 @@ class AccelBiasFilter:
         self._seen[0:2] += correction
         return correction
 
-    def _advance(self, t_s: float, f_p_ne: tuple[float, float], c9: Mat9) -> float:
-        """Predict from the last epoch to ``t_s`` (the control on if chained); returns dt."""
+    def _along_track(
+        self, t_s: float, track: TrackEpoch | None
+    ) -> tuple[float, float, float, float] | None:
+        """The interval's mean velocity N/E, along body x and the platform's height rate
+        (m/s), if ``track`` continues the height chain; else None (the chain then starts
+        again at ``track``)."""
+        last = self._track
+        if track is None or last is None or track.source != last.source:
+            self._start_height(t_s, track)
+            return None
+        return (
+            0.5 * (last.v_ne_mps[0] + track.v_ne_mps[0]),
+            0.5 * (last.v_ne_mps[1] + track.v_ne_mps[1]),
+            0.5 * (last.v_x_mps + track.v_x_mps),
+            0.5 * (last.climb_mps + track.climb_mps),
+        )
+
+    def _start_height(self, t_s: float, track: TrackEpoch | None) -> None:
+        """A new height chain at ``track`` (or none until one comes): dh = 0, the start's
+        height noise in its variance."""
+        self._track = track
+        self._s[_DH] = 0.0
+        self._p[_DH, :] = 0.0
+        self._p[:, _DH] = 0.0
+        if track is not None:
+            self._p[_DH, _DH] = track.sigma_h_m**2
+            self._climb_m, self._h0_m, self._t_height_s = 0.0, track.height_m, t_s
+
+    def _update_height(self, t_s: float, track: TrackEpoch) -> None:
+        """Weigh the height chain's residual (its start again beyond :data:`HEIGHT_GATE`)."""
+        p = self._p
+        s = p[_DH, _DH] + track.sigma_h_m**2
+        y = self._climb_m - (track.height_m - self._h0_m) - self._s[_DH]
+        if y * y > HEIGHT_GATE * s:
+            self._start_height(t_s, track)
+            return
+        k = p[:, _DH] / s
+        self._s = self._s + k * y
+        p = p - np.outer(k, p[_DH, :])
+        self._set_p(0.5 * (p + p.T))
+        self._t_height_s = t_s
+
+    def _advance(
+        self,
+        t_s: float,
+        f_p_ne: tuple[float, float],
+        c9: Mat9,
+        along: tuple[float, float, float, float] | None = None,
+    ) -> float:
+        """Predict from the last epoch to ``t_s`` (the control on if chained; the height
+        chain's climb with ``along``, :meth:`_along_track`); returns dt."""
         dt = 0.0 if self._t_s is None else max(t_s - self._t_s, 0.0)
         if dt > 0.0:
-            self._predict(dt, f_p_ne, c9, self._e_applied if self._chained else np.zeros(2))
+            e_applied = self._e_applied if self._chained else np.zeros(2)
+            self._predict(dt, f_p_ne, c9, e_applied, along)
         self._t_s = t_s
         return dt
 
-    def _predict(self, dt: float, f_p_ne: tuple[float, float], c9: Mat9, e_applied: Array) -> None:
+    def _predict(
+        self,
+        dt: float,
+        f_p_ne: tuple[float, float],
+        c9: Mat9,
+        e_applied: Array,
+        along: tuple[float, float, float, float] | None,
+    ) -> None:
         """x <- F x + B u, P <- F P F^T + Q over ``dt``; F's entries and Q's diagonal set one
         by one (per epoch, so numpy's per-call cost is what counts; docs/PERFORMANCE.md)."""
         n, g = self.noise, self.g_mps2
@@ -286,12 +406,16 @@ class AccelBiasFilter:
         f[2, 6], f[2, 7], f[3, 6], f[3, 7] = -k * c, -k * d, k * a, k * b
         decay_psi = math.exp(-dt / n.heading_correlation_s)
         f[9, 9] = decay_psi
+        if along is not None:  # dh' = -(v . x) / g + v_x dth
+            f[10, 2], f[10, 3] = -dt * along[0] / g, -dt * along[1] / g
+            f[10, 11] = dt * along[2]
         walk = 2.0 * dt / n.bias_correlation_s
         q_a = n.accel_psd * dt
         q_x = (g * n.arw_rad_per_sqrt_s) ** 2 * dt
         q_b = walk * n.accel_bias_sigma_mps2**2
         q_g = walk * n.gyro_bias_sigma_rps**2
         q_psi = n.heading_sigma_rad**2 * (1.0 - decay_psi * decay_psi)
+        q_th = n.chassis_pitch_sigma_rad**2 * dt / n.chassis_pitch_wander_s
         s = f @ self._s
         u_n, u_e = e_applied[0] * (dt / self.tau_s), e_applied[1] * (dt / self.tau_s)
         s[0] -= 0.5 * dt * u_n
@@ -300,7 +424,7 @@ class AccelBiasFilter:
         s[3] += u_e
         self._s = s
         p = f @ self._p @ f.T
-        p.flat[:: N_STATES + 1] += (q_a, q_a, q_x, q_x, q_b, q_b, q_g, q_g, q_b, q_psi)
+        p.flat[:: N_STATES + 1] += (q_a, q_a, q_x, q_x, q_b, q_b, q_g, q_g, q_b, q_psi, 0.0, q_th)
         self._set_p(p)
 
     def inconsistent(self) -> bool:

@@ -70,6 +70,7 @@ from gateway.estimation.observer.accel_bias_filter import (
     NIS_WINDOW_S,
     AccelBiasFilter,
     BiasFilterNoise,
+    TrackEpoch,
 )
 from gateway.estimation.observer.coast_budget import CoastBudget
 from gateway.estimation.observer.ground_constraint import (
@@ -715,7 +716,8 @@ class ObserverEngine:
             along_x = self._velocity_along_body_x(fix, t_e, c_e, w_lever, row)
             if along_x is not None:
                 v_tilt, closed = along_x, True
-        glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed, sigma_v)
+        track = self._track_epoch(fix, c_e, v_ref) if self._heading_aligned else None
+        glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed, sigma_v, track)
         if not closed:
             # moving before the heading and the direction of travel are known: the velocity is
             # in the receiver's azimuth, not the platform's, so no base for eq. (3)'s next
@@ -1162,11 +1164,35 @@ class ObserverEngine:
         self._forward = hint.forward(if_forward, row[_PSI])
         self._forward_known = True
 
+    def _track_epoch(self, fix: GnssFix, c_e: Mat9, v_ref: Float3) -> TrackEpoch | None:
+        """The reference point's height, velocity and the height rate the attitude ``c_e``
+        gives that velocity (a wheeled vehicle has none along its body z), at the epoch, for
+        the accel-bias filter's climb-angle measurement of pitch; None without a height."""
+        if fix.alt_m is None:
+            return None
+        l_ant = self._l_ant_f
+        v_n, v_e = v_ref[0], v_ref[1]
+        return TrackEpoch(
+            fix.alt_m + c_e[6] * l_ant[0] + c_e[7] * l_ant[1] + c_e[8] * l_ant[2],
+            self._fix_sigma_m(fix)[2],
+            (v_n, v_e),
+            (v_n * c_e[0] + v_e * c_e[3]) / math.hypot(c_e[0], c_e[3]),
+            (v_n * c_e[2] + v_e * c_e[5]) / c_e[8],
+            (int(fix.quality), fix.reference_station_id),
+        )
+
     def _correct_tilt(
-        self, t_e: float, v_imu_n: float, v_imu_e: float, row: _Row, closed: bool, sigma_v: float
+        self,
+        t_e: float,
+        v_imu_n: float,
+        v_imu_e: float,
+        row: _Row,
+        closed: bool,
+        sigma_v: float,
+        track: TrackEpoch | None,
     ) -> bool:
         """Eq. (3) over exactly the GNSS interval (``sigma_v`` the fix's velocity 1-sigma,
-        m/s); returns True for a glitch.
+        m/s; ``track`` for the accel-bias filter); returns True for a glitch.
 
         e = (v_k - v_{k-1}) / T - mean f_p over [t_{k-1}, t_k], horizontal (the -g term has no
         horizontal part). The velocity is moved from the antenna to the IMU with both lever
@@ -1229,7 +1255,7 @@ class ObserverEngine:
         obs.correct_tilt(*u_ne)
         self._watch_corrections(t_e, u_ne, period_s)
         if self._ba_filter is not None and not glitch:
-            self._filter_epoch(t_e, (e_n, e_e), u_ne, (row, prow), interval_s, sigma_v)
+            self._filter_epoch(t_e, (e_n, e_e), u_ne, (row, prow), interval_s, sigma_v, track)
         self._sigma_level_rad, self._sigma_level_held = self._tilt_loop.decay(
             self._sigma_level_rad, self._sigma_level_held, interval_s
         )
@@ -1246,10 +1272,11 @@ class ObserverEngine:
         rows: tuple[_Row, _Row],
         interval_s: float,
         sigma_v: float,
+        track: TrackEpoch | None,
     ) -> None:
         """Feed the accel-bias filter the epoch's e and the e the loop applies from it
-        (``u_ne``; it starts with learning), with the fix's velocity 1-sigma, and apply the
-        x/y bias correction it returns."""
+        (``u_ne``; it starts with learning), with the fix's velocity 1-sigma and the track,
+        and apply the x/y bias correction it returns."""
         obs, flt = self._observer, self._ba_filter
         assert obs is not None and flt is not None
         ba, bg = obs.ba_hat_mps2, obs.bg_hat_rps
@@ -1267,7 +1294,7 @@ class ObserverEngine:
             flt.start(obs.c_bp9, self._ba_origin[2], biases, self._bias_filter_noise())
         row, prow = rows
         f_p = ((row[_SF_N] - prow[_SF_N]) / interval_s, (row[_SF_E] - prow[_SF_E]) / interval_s)
-        db = flt.epoch(t_e, e_ne, u_ne, f_p, obs.c_bp9, biases, sigma_v, obs.learn)
+        db = flt.epoch(t_e, e_ne, u_ne, f_p, obs.c_bp9, biases, sigma_v, obs.learn, track)
         obs.add_accel_bias_xy(*db)
         sigma0, learnt = self.cfg.accel_bias_sigma0_mps2, flt.sigma_mps2
         if learnt < REOPEN_ARMED_SHARE * sigma0 and flt.inconsistent():
