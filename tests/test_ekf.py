@@ -13,6 +13,7 @@ from gateway.estimation.attitude import dcm_from_rpy, exp_so3
 from gateway.estimation.ekf.error_state import (
     ATT,
     BG,
+    CHASSIS,
     FIX,
     N_STATES,
     POS,
@@ -79,6 +80,11 @@ def test_velocity_jacobian_matches_finite_differences() -> None:
 def test_nonholonomic_jacobian_matches_finite_differences() -> None:
     m = fuse_nonholonomic(V_NED, C_BN, W_B, -L_B, 0.05)
     num = _numeric_h(lambda p, v, c, w: -(c.T @ v + np.cross(w, -L_B))[1:], 2)
+    eps = 1e-6  # the chassis's pitch against its track: v_z = v_x c
+    z_plus = fuse_nonholonomic(V_NED, C_BN, W_B, -L_B, 0.05, eps).z
+    z_minus = fuse_nonholonomic(V_NED, C_BN, W_B, -L_B, 0.05, -eps).z
+    num[:, CHASSIS] = (z_plus - z_minus) / (2 * eps)
+    assert abs(num[1, CHASSIS]) > 0.5  # the body x velocity, m/s
     assert_allclose(-m.h, num, atol=1e-8)  # z = 0 - prediction
 
 

@@ -1,4 +1,4 @@
-"""The EKF engine: 18-state loosely coupled GNSS/INS filter behind the Estimator protocol.
+"""The EKF engine: 19-state loosely coupled GNSS/INS filter behind the Estimator protocol.
 
 Per IMU sample (:meth:`EkfEngine.imu`): strapdown mechanisation of the IMU point and a
 history row (for late GNSS epochs). Per GNSS epoch (:meth:`EkfEngine.gnss`): epoch time, then
@@ -28,7 +28,9 @@ Design choices (ALGORITHMS.md 3 leaves them to the implementer):
   not averaged into false confidence, and RTK fixed is weighed by its own sigma.
 - Yaw: the non-holonomic constraint (zero lateral and vertical velocity of the reference
   point) ties yaw to the direction of travel whenever the vehicle moves, forwards or in
-  reverse; HDT is fused when present. No COG pseudo-measurement is needed.
+  reverse; HDT is fused when present. No COG pseudo-measurement is needed. Its vertical
+  row allows the chassis its own pitch against its track (a state:
+  :mod:`gateway.estimation.chassis`), which would otherwise be read as x accelerometer bias.
 """
 
 from __future__ import annotations
@@ -60,11 +62,13 @@ from gateway.estimation.attitude import (
     to_mat9,
 )
 from gateway.estimation.bias_change import BiasChange, TiltCorrections, bias_change_text
+from gateway.estimation.chassis import CHASSIS_PITCH_SIGMA_RAD
 from gateway.estimation.ekf.ekf_config import EkfConfig, EkfTuning
 from gateway.estimation.ekf.error_state import (
     ATT,
     BA,
     BG,
+    CHASSIS,
     FIX,
     N_STATES,
     POS,
@@ -186,7 +190,8 @@ class EkfEngine:
         self._imu_gaps_at_reset = 0
         self._q_c = np.zeros(N_STATES)
         self._ins: Strapdown | None = None
-        self._p: Array | None = None  # error covariance (18, 18); None until heading is known
+        self._p: Array | None = None  # error covariance (19, 19); None until heading is known
+        self._chassis_pitch_rad = 0.0  # the chassis's pitch against its track (CHASSIS)
         # the receiver's position error (FIX states): estimate, white and wandering variance
         self._fix_err_ned_m = np.zeros(3)
         self._fix_var_white_m2 = np.zeros(3)
@@ -635,6 +640,7 @@ class EkfEngine:
             np.array(ins.w_b_lp_rps),
             -self._l_imu_b,
             self.cfg.nhc_sigma_mps,
+            self._chassis_pitch_rad,
         )
         dx = np.zeros(N_STATES)
         if correct(self._p, dx, m, self.cfg.gate_sigma).accepted:
@@ -658,6 +664,7 @@ class EkfEngine:
         rot = self._ins.inject(dx, max(0.0, self._t_s - t_e))
         self._hist.shift(dx[POS], dx[VEL], rot, t_e)
         self._fix_err_ned_m += dx[FIX]
+        self._chassis_pitch_rad += float(dx[CHASSIS])
         step = math.hypot(dx[ATT.start], dx[ATT.start + 1])
         if step > self._tilt_step_rad(self._t_s):
             self._tilt_step = (step, self._t_s)
@@ -732,6 +739,8 @@ class EkfEngine:
             p[ATT, ATT] += (m * var_ba) @ m.T
             p[ATT, BA] = m * var_ba
         p[BA, ATT] = p[ATT, BA].T
+        p[CHASSIS, CHASSIS] = CHASSIS_PITCH_SIGMA_RAD**2
+        self._chassis_pitch_rad = 0.0
         self._set_fix_error_model(sig_pos, restart=True)
         self._set_from_fix(fix, t_e, row_aligned)
         self._last_quality = fix.quality

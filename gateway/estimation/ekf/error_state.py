@@ -13,7 +13,7 @@ which the filter estimates anyway; transport rate at 5 m/s is v/R = 8e-7 rad/s; 
 acceleration 2 w_ie v = 7e-4 m/s^2 at 5 m/s is below the accelerometer bias being estimated.
 Gravity is constant over a field.
 
-Error state (18, :data:`POS` ... :data:`FIX`), true = nominal + error, except attitude:
+Error state (19, :data:`POS` ... :data:`CHASSIS`), true = nominal + error, except attitude:
 C_bn_true = (I + [phi]x) C_bn, phi a small rotation in NED. Continuous error dynamics
 
     d(dp)/dt = dv
@@ -21,11 +21,15 @@ C_bn_true = (I + [phi]x) C_bn, phi a small rotation in NED. Continuous error dyn
     d(phi)/dt = -C_bn dbg - C_bn n_g
     d(dba)/dt = w_ba,   d(dbg)/dt = w_bg   (random walks: see EkfTuning)
     d(db)/dt = -db / tau_fix + w_fix       (the receiver's position error, NED)
+    d(dc)/dt = w_c                         (the chassis's pitch against its track)
 
 The last three states are the error of the receiver's current position solution, first-order
 Gauss-Markov (:mod:`gateway.estimation.gnss_error`): RTK float and DGNSS errors wander over
 tens of seconds; taken as white, a minute of them collapsed the position variance and the
-filter followed the wander. The engine restarts them when the fix quality changes.
+filter followed the wander. The engine restarts them when the fix quality changes. The
+chassis's pitch against its track (:mod:`gateway.estimation.chassis`) is what the
+non-holonomic constraint's vertical row allows: the reference point moves along the track,
+which the chassis, on its tyres, may pitch against.
 
 Measurement models return a :class:`Measurement` (z, H, R) as in pyins; :func:`correct`
 does the algebra for any of them (sequential, NIS gate).
@@ -52,6 +56,7 @@ from gateway.estimation.attitude import (
     orthonormalise,
     to_mat9,
 )
+from gateway.estimation.chassis import CHASSIS_PITCH_SIGMA_RAD, CHASSIS_PITCH_WANDER_S
 from gateway.estimation.ekf.ekf_config import EkfTuning
 from gateway.estimation.lever_arm import lever_arm_position_ned, lever_arm_velocity_ned
 
@@ -65,7 +70,8 @@ ATT = slice(6, 9)  # attitude error phi, NED, rad
 BA = slice(9, 12)  # accelerometer bias error, body, m/s^2
 BG = slice(12, 15)  # gyro bias error, body, rad/s
 FIX = slice(15, 18)  # error of the receiver's position solution, NED, m
-N_STATES = 18
+CHASSIS = 18  # the chassis's pitch against its track, rad
+N_STATES = 19
 
 #: Low-pass time constant of the body rate used for lever-arm velocities at the current time:
 #: one sample of ARW noise is 0.5 deg/s, 2.5 cm/s at a 3 m lever arm.
@@ -121,7 +127,7 @@ def chi2_sf(x: float, dof: int) -> float:
 class Measurement:
     """One measurement linearised about the nominal state: z = H dx + v, v ~ N(0, R).
 
-    ``z`` shape (m,) innovation (measured minus predicted), ``h`` shape (m, 18), ``r`` (m, m).
+    ``z`` shape (m,) innovation (measured minus predicted), ``h`` shape (m, 19), ``r`` (m, m).
     """
 
     name: str
@@ -140,7 +146,7 @@ class Correction:
 
 
 def correct(p: Array, dx: Array, m: Measurement, gate_sigma: float) -> Correction:
-    """Fuse ``m`` into the error state ``dx`` (18,) and covariance ``p`` (18, 18), in place.
+    """Fuse ``m`` into the error state ``dx`` (19,) and covariance ``p`` (19, 19), in place.
 
     Sequential form: the innovation is taken relative to the error already estimated in this
     batch (z - H dx), so several measurements of one epoch share one feedback. Rejected if
@@ -275,7 +281,7 @@ class Strapdown:
         return out
 
     def inject(self, dx: Array, age_s: float = 0.0) -> Mat9:
-        """Closed-loop feedback of the error estimate ``dx`` (18,) of a time ``age_s`` ago;
+        """Closed-loop feedback of the error estimate ``dx`` (19,) of a time ``age_s`` ago;
         returns the rotation.
 
         Position, velocity and biases add, the position with the velocity error's drift
@@ -304,7 +310,7 @@ class Strapdown:
 
 
 def _flat(rows: slice, cols: slice) -> npt.NDArray[np.intp]:
-    """Flat indices of the block (rows, cols) of an (18, 18) matrix."""
+    """Flat indices of the block (rows, cols) of an (19, 19) matrix."""
     return np.arange(N_STATES * N_STATES).reshape(N_STATES, N_STATES)[rows, cols]
 
 
@@ -321,7 +327,7 @@ _PHI_FIX = np.diagonal(_flat(FIX, FIX)).copy()
 def transition_matrix(
     t_s: float, dv_f_ned_mps: Array, c_dt: Array, fix_decay: float = 1.0
 ) -> Array:
-    """Phi (18, 18) over an interval T from the IMU sums of :meth:`Strapdown.take_interval`.
+    """Phi (19, 19) over an interval T from the IMU sums of :meth:`Strapdown.take_interval`.
 
     A = F T with F averaged over the interval (f_n T = integral f_n dt, C T = integral C dt);
     A^4 = 0 (the chain bg -> phi -> v -> p is three long), so I + A + A^2/2 + A^3/6 is
@@ -349,7 +355,7 @@ def transition_matrix(
 
 
 def process_noise_psd(tuning: EkfTuning) -> Array:
-    """Diagonal continuous process noise Q_c (18,) of the error state.
+    """Diagonal continuous process noise Q_c (19,) of the error state.
 
     White accel/gyro noise enters dv and phi through C_bn; being isotropic, C q I C^T = q I.
     The fix-error states' driving noise depends on the fix: the engine sets it per epoch.
@@ -359,6 +365,7 @@ def process_noise_psd(tuning: EkfTuning) -> Array:
     q[ATT] = tuning.q_gyro_rad2_per_s
     q[BA] = tuning.q_bias_a_m2_per_s5
     q[BG] = tuning.q_bias_g_rad2_per_s3
+    q[CHASSIS] = CHASSIS_PITCH_SIGMA_RAD**2 / CHASSIS_PITCH_WANDER_S
     return q
 
 
@@ -446,15 +453,22 @@ def fuse_velocity(
 
 
 def fuse_nonholonomic(
-    v_ned_mps: Array, c_bn: Array, w_b_rps: Array, l_ref_b: Array, sigma_mps: float
+    v_ned_mps: Array,
+    c_bn: Array,
+    w_b_rps: Array,
+    l_ref_b: Array,
+    sigma_mps: float,
+    chassis_pitch_rad: float = 0.0,
 ) -> Measurement:
-    """Zero lateral and vertical body velocity of the reference point (land vehicle).
+    """Zero lateral body velocity of the reference point (land vehicle), and vertical but
+    for the chassis's pitch c against its track: v_z = v_x c.
 
     v_ref_b = C^T v + w x l, l = reference point relative to the IMU (body). Holds driving
     forwards, reversing (only the longitudinal component changes sign) and at rest.
-    d(v_ref_b) = C^T dv + C^T [v]x phi + [l]x dbg.
+    d(v_ref_b) = C^T dv + C^T [v]x phi + [l]x dbg; d(v_z - v_x c) adds -v_x dc (v_x c's
+    own dependence on dv and phi is second order).
     """
-    _, c1, c2, _, c4, c5, _, c7, c8 = c_bn.ravel().tolist()
+    c0, c1, c2, c3, c4, c5, c6, c7, c8 = c_bn.ravel().tolist()
     vn, ve, vd = v_ned_mps.tolist()
     wx, wy, wz = w_b_rps.tolist()
     lx, ly, lz = l_ref_b.tolist()
@@ -466,8 +480,10 @@ def fuse_nonholonomic(
         (c5 * vd - c8 * ve, c8 * vn - c2 * vd, c2 * ve - c5 * vn),
     )
     h[:, BG] = ((lz, 0.0, -lx), (-ly, lx, 0.0))
+    v_x = c0 * vn + c3 * ve + c6 * vd + (wy * lz - wz * ly)
+    h[1, CHASSIS] = -v_x
     v_y = c1 * vn + c4 * ve + c7 * vd + (wz * lx - wx * lz)
-    v_z = c2 * vn + c5 * ve + c8 * vd + (wx * ly - wy * lx)
+    v_z = c2 * vn + c5 * ve + c8 * vd + (wx * ly - wy * lx) - v_x * chassis_pitch_rad
     var = sigma_mps * sigma_mps
     return Measurement(
         "nonholonomic", np.array((-v_y, -v_z)), h, np.array(((var, 0.0), (0.0, var)))

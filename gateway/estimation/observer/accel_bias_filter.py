@@ -78,6 +78,7 @@ import numpy.typing as npt
 
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 from gateway.estimation.attitude import Mat9
+from gateway.estimation.chassis import CHASSIS_PITCH_SIGMA_RAD, CHASSIS_PITCH_WANDER_S
 
 Array = npt.NDArray[np.float64]
 
@@ -121,11 +122,10 @@ class BiasFilterNoise:
     gyro_bias_sigma0_rps: float = 0.02 * DEG_TO_RAD
     heading_sigma_rad: float = 0.3 * DEG_TO_RAD  # the heading channel's, Gauss-Markov ...
     heading_correlation_s: float = 10.0  # ... held by the course over ground
-    # The chassis's pitch against its track (tyres, ballast, a lifted implement: up to about
-    # 0.5 deg, gateway.fusion.mounting_check), 1-sigma, and the time it takes to wander by
-    # that much (a random walk)
-    chassis_pitch_sigma_rad: float = 0.25 * DEG_TO_RAD
-    chassis_pitch_wander_s: float = 120.0
+    # The chassis's pitch against its track, 1-sigma, and the time it takes to wander by
+    # that much (a random walk: gateway.estimation.chassis)
+    chassis_pitch_sigma_rad: float = CHASSIS_PITCH_SIGMA_RAD
+    chassis_pitch_wander_s: float = CHASSIS_PITCH_WANDER_S
 
 
 @dataclass(frozen=True, slots=True)
