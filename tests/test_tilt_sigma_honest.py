@@ -29,6 +29,15 @@ from tests.kinematics import Motion, Segment, fed, gnss_stream, imu_stream, moti
 from tests.n2k_check import stated_tilts
 
 
+def beyond_stated(t_s: float, off_deg: float, sigma_rad: float) -> list[str]:
+    """The never-lie check of one solution: a line if its tilt, ``off_deg`` from the truth,
+    is beyond 0.1 deg + 3 stated sigmas; else none."""
+    sigma_deg = math.degrees(sigma_rad)
+    if off_deg > 0.1 + 3.0 * sigma_deg:
+        return [f"{t_s:.1f} s: {off_deg:.2f} deg off, {sigma_deg:.3f} stated"]
+    return []
+
+
 @pytest.fixture(scope="module", params=[5, 21, 34])
 def slope_start(request: pytest.FixtureRequest, tmp_path_factory: pytest.TempPathFactory) -> SimRun:
     """The run of one seed."""
@@ -171,9 +180,7 @@ def test_a_paper_sized_bias_learnt_in_the_first_turn_is_within_the_stated_accura
         if sol.mode in (Mode.DEGRADED, Mode.FAULT):
             continue
         checked += 1
-        if last_err > 0.1 + 3.0 * math.degrees(sol.sigma_tilt_rad):
-            beyond.append(f"{motion_time(s.t):.1f} s: {last_err:.2f} deg off, "
-                          f"{math.degrees(sol.sigma_tilt_rad):.2f} stated")  # fmt: skip
+        beyond += beyond_stated(motion_time(s.t), last_err, sol.sigma_tilt_rad)
     assert checked > 500
     assert not beyond, beyond[:5]
     if engine is Engine.EKF or accel_bias_filter:  # eq. (12) needs more than one turn
@@ -244,9 +251,7 @@ def test_a_gross_x_bias_leaves_the_pitch_on_the_first_straight(chassis_deg: floa
             parked.append(last)
         elif t >= 35.0 and sol.mode is Mode.NAVIGATING:
             checked += 1
-            if last > 0.1 + 3.0 * math.degrees(sol.sigma_tilt_rad):
-                beyond.append(f"{t:.1f} s: {last:.2f} deg off, "
-                              f"{math.degrees(sol.sigma_tilt_rad):.2f} stated")  # fmt: skip
+            beyond += beyond_stated(t, last, sol.sigma_tilt_rad)
     assert min(parked) > 2.4  # b_x / g: the bias, not yet told from a pitch
     assert checked > 500
     assert not beyond, beyond[:5]
@@ -294,9 +299,7 @@ def test_a_chassis_pitched_on_its_tyres_is_not_read_as_accelerometer_bias(
         assert sol.pitch_rad is not None and sol.sigma_tilt_rad is not None
         off = math.degrees(abs(sol.pitch_rad - drive.pitch_rad))
         checked += 1
-        if off > 0.1 + 3.0 * math.degrees(sol.sigma_tilt_rad):
-            beyond.append(f"{t:.1f} s: {off:.2f} deg off, "
-                          f"{math.degrees(sol.sigma_tilt_rad):.3f} stated")  # fmt: skip
+        beyond += beyond_stated(t, off, sol.sigma_tilt_rad)
     assert checked > 1500
     assert not beyond, beyond[:5]
     assert sol.bias_a_mps2 is not None
