@@ -43,13 +43,24 @@ class Segment:
 
 
 @dataclass(frozen=True)
+class ChassisStep:
+    """The chassis pitching by ``d_rad`` on its tyres against its track (an implement lifted
+    or lowered), a raised-cosine ramp of ``ramp_s`` from motion time ``t_s``."""
+
+    t_s: float
+    d_rad: float
+    ramp_s: float = 2.0
+
+
+@dataclass(frozen=True)
 class Motion:
     """Segments driven from speed ``v0_mps`` and heading ``yaw0_rad`` at constant roll/pitch.
 
     Speeds and accelerations are horizontal; the vehicle moves along its body x axis, as a
     wheeled one does, so with pitch it climbs (or descends) tan(pitch - chassis pitch) per
     metre (the chassis's own pitch against its track: a load, a lifted implement). Roll may
-    rock about the reference point: roll + rock sin(2 pi rock_hz t)."""
+    rock about the reference point: roll + rock sin(2 pi rock_hz t). ``chassis_steps`` pitch
+    the body and the chassis together about the reference point, the track unchanged."""
 
     segments: Sequence[Segment]
     v0_mps: float = 0.0
@@ -59,6 +70,7 @@ class Motion:
     rock_rad: float = 0.0  # amplitude of a roll rocking about the reference point (rough ground)
     rock_hz: float = 0.0
     chassis_pitch_rad: float = 0.0
+    chassis_steps: Sequence[ChassisStep] = ()
 
     @property
     def duration_s(self) -> float:
@@ -135,14 +147,22 @@ def state_at(motion: Motion, t: npt.ArrayLike) -> State:
     )
     w_rock = 2.0 * math.pi * motion.rock_hz
     roll = r + motion.rock_rad * np.sin(w_rock * tt)
-    sr, cr, sp, cp = np.sin(roll), np.cos(roll), math.sin(th), math.cos(th)
+    pitch, pitch_rate = np.full(n, th), np.zeros(n)
+    for step in motion.chassis_steps:
+        u = np.clip((tt - step.t_s) / step.ramp_s, 0.0, 1.0)
+        pitch += 0.5 * step.d_rad * (1.0 - np.cos(math.pi * u))
+        ramping = (u > 0.0) & (u < 1.0)
+        pitch_rate += ramping * 0.5 * step.d_rad * math.pi / step.ramp_s * np.sin(math.pi * u)
+    sr, cr, sp, cp = np.sin(roll), np.cos(roll), np.sin(pitch), np.cos(pitch)
     c_bn = np.empty((n, 3, 3))
     c_bn[:, 0] = np.stack((cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr), axis=1)
     c_bn[:, 1] = np.stack((sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr), axis=1)
-    c_bn[:, 2] = np.stack((np.full(n, -sp), cp * sr, cp * cr), axis=1)
-    # Euler kinematics with pitch constant: w_b = (roll rate - yaw rate sin(pitch), ...)
-    w_b = rate[i][:, None] * np.stack((np.full(n, -sp), sr * cp, cr * cp), axis=1)
+    c_bn[:, 2] = np.stack((-sp, cp * sr, cp * cr), axis=1)
+    # Euler kinematics: w_b = (roll rate - yaw rate sin(pitch), pitch rate cos(roll) + ...)
+    w_b = rate[i][:, None] * np.stack((-sp, sr * cp, cr * cp), axis=1)
     w_b[:, 0] += motion.rock_rad * w_rock * np.cos(w_rock * tt)
+    w_b[:, 1] += pitch_rate * cr
+    w_b[:, 2] -= pitch_rate * sr
     return State(p_ned, v_ned, a_ned, yaw % (2 * math.pi), c_bn, w_b)
 
 

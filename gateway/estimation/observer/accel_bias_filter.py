@@ -58,8 +58,16 @@ height chain telescopes as the velocity chain does: the measurement is the chain
 residual, its noise the last height's alone. It is weighed once a second (RTK heights are
 correlated over seconds, not white at 10 Hz). Before the first turn it
 takes a gross x bias out of the pitch down to the chassis's prior (an ADIS16334 unit 4.9
-sigma of the turn-on prior sent pitch 2.9 deg off for two minutes); after the turns the
-biases are known and it measures the chassis's pitch.
+sigma of the turn-on prior sent pitch 2.9 deg off for two minutes).
+
+An x bias error and the chassis's pitch make the same climb along body x (db_x / g and
+dth), so the chain tells the bias no better than the chassis's pitch is known. Once the
+bias is known better than that (its turns, a seed) the chain is not weighed: it would read
+only the chassis's pitch, and that steps (an implement lifted or lowered at a headland, up
+to about 1 deg within seconds, where the random walk allows 0.25 deg in two minutes): a
+step's height, split by the filter between dth, the tilt and the bias, moved the x bias 5
+mg per headland with a 1 deg lift through each U-turn, and after eight the pitch went out
+0.4-1.1 deg off with 0.09 stated. A bias re-opened (a bias change) is learnt from it again.
 
 A bias that steps while the filter holds it learnt is outside the model. No epoch's
 innovation need pass the gate, but their sum over :data:`NIS_WINDOW_S` does
@@ -354,8 +362,13 @@ class AccelBiasFilter:
             self._climb_m, self._h0_m, self._t_height_s = 0.0, track.height_m, t_s
 
     def _update_height(self, t_s: float, track: TrackEpoch) -> None:
-        """Weigh the height chain's residual (its start again beyond :data:`HEIGHT_GATE`)."""
+        """Weigh the height chain's residual (its start again beyond :data:`HEIGHT_GATE`),
+        while the x bias is known less well than the chassis's pitch (module docstring);
+        else start the chain again, unweighed."""
         p = self._p
+        if p[4, 4] <= (self.g_mps2 * self.g_mps2) * p[_DTH, _DTH]:
+            self._start_height(t_s, track)
+            return
         s = p[_DH, _DH] + track.sigma_h_m**2
         y = self._climb_m - (track.height_m - self._h0_m) - self._s[_DH]
         if y * y > HEIGHT_GATE * s:
