@@ -716,7 +716,11 @@ class ObserverEngine:
             along_x = self._velocity_along_body_x(fix, t_e, c_e, w_lever, row)
             if along_x is not None:
                 v_tilt, closed = along_x, True
-        track = self._track_epoch(fix, c_e, v_ref) if self._heading_aligned else None
+        track = (
+            self._track_epoch(fix, c_e, v_ref)
+            if self._heading_aligned and self._ba_filter is not None
+            else None
+        )
         glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed, sigma_v, track)
         if not closed:
             # moving before the heading and the direction of travel are known: the velocity is
