@@ -113,6 +113,10 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
             }
         },
     ),
+    "implement-lift": (
+        "chassis pitched 0.5 deg on its tyres, 1 deg more (in 2 s) over every headland",
+        {"vehicle": {"chassis_pitch_deg": 0.5, "implement_lift_deg": 1.0}},
+    ),
     "antenna-offset": (
         "antenna 0.8 m right, 1.5 m forward, 3.5 m up",
         {"vehicle": {"antenna_lever_arm_m": [1.5, 0.8, -3.5]}},

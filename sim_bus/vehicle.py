@@ -8,8 +8,12 @@ by fourth-order Hermite quadrature and interpolated with the same cubic. The spe
 is a sequence of rests, cruises and speed ramps whose acceleration is a sin^2 pulse (peak =
 ``accel_max_mps2``, continuous jerk). Height, roll and pitch follow the analytic terrain of
 :mod:`sim_bus.terrain` under the reference point (body z along the terrain normal, body x the
-heading projected onto the terrain). Velocity, acceleration, body rate and its derivative come
-from the chain rule with exact terrain derivatives, so the truth is self-consistent to rounding.
+heading projected onto the terrain), then pitched about its own y axis by the chassis's pitch
+on its tyres against the ground (``chassis_pitch_deg``, and ``implement_lift_deg`` more over
+each headland: a rear implement lifted as the pass ends and lowered as the next begins, over
+``implement_lift_s``); the reference point's track is the terrain's.
+Velocity, acceleration, body rate and its derivative come from the chain rule with exact
+terrain derivatives, so the truth is self-consistent to rounding.
 
 Frames: NED navigation frame, body FRD, attitude ZYX roll/pitch/yaw with yaw from true north,
 g = [0, 0, +9.80665] m/s^2 in NED, specific force f = a - g. While reversing, the body keeps its
@@ -85,6 +89,9 @@ class VehicleConfig:
     bump_count: int = 8
     antenna_lever_arm_m: tuple[float, float, float] = (0.3, 0.0, -3.0)  # body FRD
     imu_lever_arm_m: tuple[float, float, float] = (0.5, 0.1, -1.0)  # body FRD
+    chassis_pitch_deg: float = 0.0  # the chassis's pitch against its track, nose up, working
+    implement_lift_deg: float = 0.0  # ... and more with the implement lifted at headlands
+    implement_lift_s: float = 2.0  # the hitch's lift or lowering
     # The ground of another run (a restart where that run stopped: sim_bus.scenarios.
     # continuation): its terrain's swath heading and bump seed (None: this run's own), and
     # where this run's origin lies in that terrain's frame (north, east, m).
@@ -128,6 +135,7 @@ class _Piece:
     speed_mps: float
     direction: int = 1
     stop_after_s: float | None = None
+    work: bool = False  # a pass (the implement down), not a headland piece
 
     def heading(self, u: Array) -> tuple[Array, Array, Array]:
         """Heading change psi - psi_start (rad), curvature (1/m), dcurvature/du (1/m^2) at u."""
@@ -183,10 +191,10 @@ def _plan_pieces(cfg: VehicleConfig) -> list[_Piece]:
         v = cfg.work_speeds_mps[k % len(cfg.work_speeds_mps)]
         if k == cfg.mid_stop_pass:
             half = 0.5 * cfg.swath_length_m
-            pieces += [_Piece(half, 0.0, 0.0, v, stop_after_s=cfg.mid_stop_s)]
-            pieces += [_Piece(half, 0.0, 0.0, v)]
+            pieces += [_Piece(half, 0.0, 0.0, v, stop_after_s=cfg.mid_stop_s, work=True)]
+            pieces += [_Piece(half, 0.0, 0.0, v, work=True)]
         else:
-            pieces.append(_Piece(cfg.swath_length_m, 0.0, 0.0, v))
+            pieces.append(_Piece(cfg.swath_length_m, 0.0, 0.0, v, work=True))
         if k == cfg.n_passes - 1:
             break
         sign = first_sign * (-1.0) ** k
@@ -439,6 +447,16 @@ def simulate_vehicle(
     )
     rpy = np.column_stack((phi, theta, (psi + np.pi) % (2.0 * np.pi) - np.pi))
     c_bn = dcm_from_rpy_array(rpy)
+    if cfg.chassis_pitch_deg or cfg.implement_lift_deg:
+        pitch = _chassis_pitch(cfg, path, u, t_rel)
+        c_bn, w_ib_b, dw_ib_b = _pitch_chassis(c_bn, w_ib_b, dw_ib_b, *pitch)
+        rpy = np.column_stack(
+            (
+                np.arctan2(c_bn[:, 2, 1], c_bn[:, 2, 2]),
+                -np.arcsin(np.clip(c_bn[:, 2, 0], -1.0, 1.0)),
+                np.arctan2(c_bn[:, 1, 0], c_bn[:, 0, 0]),
+            )
+        )
 
     lever_arm_ant = np.asarray(cfg.antenna_lever_arm_m, dtype=float)
     lever_arm_imu = np.asarray(cfg.imu_lever_arm_m, dtype=float)
@@ -470,6 +488,48 @@ def simulate_vehicle(
         imu_lever_arm_m=lever_arm_imu,
         dt_s=dt_s,
     )
+
+
+def _chassis_pitch(
+    cfg: VehicleConfig, path: _Path, u_m: Array, t_s: Array
+) -> tuple[Array, Array, Array]:
+    """The chassis's pitch against its track (rad) and its first and second time derivatives
+    at times ``t_s`` (travelled distance ``u_m``): ``chassis_pitch_deg``, and
+    ``implement_lift_deg`` more from the end of each pass to the start of the next, each
+    change over ``implement_lift_s`` from the time the pass ends or begins, its rate a sin^2
+    pulse (as the speed ramps': continuous angular acceleration)."""
+    c = np.full(len(t_s), math.radians(cfg.chassis_pitch_deg))
+    c1, c2 = np.zeros_like(c), np.zeros_like(c)
+    lift, ramp = math.radians(cfg.implement_lift_deg), cfg.implement_lift_s
+    work = [p.work for p in path.pieces]
+    for k in range(1, len(work)):
+        if work[k] == work[k - 1]:
+            continue
+        t0 = t_s[min(int(np.searchsorted(u_m, path.u_start_m[k])), len(t_s) - 1)]
+        step = lift if work[k - 1] else -lift  # lifted as a pass ends, lowered as one begins
+        x = 2.0 * np.pi * np.clip((t_s - t0) / ramp, 0.0, 1.0)
+        c += step * (x - np.sin(x)) / (2.0 * np.pi)
+        c1 += step / ramp * (1.0 - np.cos(x))
+        c2 += step * 2.0 * np.pi / ramp**2 * np.sin(x)
+    return c, c1, c2
+
+
+def _pitch_chassis(
+    c_bn: Array, w_b: Array, dw_b: Array, c: Array, c1: Array, c2: Array
+) -> tuple[Array, Array, Array]:
+    """Attitude, body rate and its derivative of a body pitched by ``c`` (rad, with its time
+    derivatives ``c1``, ``c2``) about its own y axis: C <- C R_y(c),
+    w <- R_y^T w + c' e_y, w' <- R_y^T w' - c' e_y x (R_y^T w) + c'' e_y."""
+    cc, sc = np.cos(c), np.sin(c)
+    r_y = np.zeros((len(c), 3, 3))
+    r_y[:, 0, 0], r_y[:, 0, 2], r_y[:, 1, 1] = cc, sc, 1.0
+    r_y[:, 2, 0], r_y[:, 2, 2] = -sc, cc
+    w_new = np.einsum("nji,nj->ni", r_y, w_b)
+    dw_new = np.einsum("nji,nj->ni", r_y, dw_b)
+    dw_new -= np.cross(c1[:, None] * np.array([0.0, 1.0, 0.0]), w_new)
+    w_new[:, 1] += c1
+    dw_new[:, 1] += c2
+    return c_bn @ r_y, w_new, dw_new
 
 
 VEHICLE_PRESETS: dict[str, VehicleConfig] = {

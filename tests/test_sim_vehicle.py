@@ -29,6 +29,24 @@ def short() -> Truth:
     return simulate_vehicle(VEHICLE_PRESETS["short"], T0_S, seed=7)
 
 
+LIFTING = dataclasses.replace(
+    VEHICLE_PRESETS["short"], chassis_pitch_deg=0.5, implement_lift_deg=1.0
+)
+
+
+@pytest.fixture(scope="module")
+def lifting() -> Truth:
+    """``short`` with the chassis pitched 0.5 deg on its tyres, 1 deg more over headlands."""
+    return simulate_vehicle(LIFTING, T0_S, seed=7)
+
+
+@pytest.fixture(params=["short", "lifting"])
+def drive(request: pytest.FixtureRequest) -> Truth:
+    """Each of the two runs (the self-consistency checks hold for both)."""
+    truth: Truth = request.getfixturevalue(request.param)
+    return truth
+
+
 @pytest.fixture(scope="module")
 def reversing() -> Truth:
     return simulate_vehicle(VEHICLE_PRESETS["headland-reversing"], T0_S, COARSE_DT_S, seed=2)
@@ -58,48 +76,68 @@ def test_short_preset_shape(short: Truth) -> None:
     assert not np.any(short.bias_g_rps) and not np.any(short.bias_a_mps2)
 
 
-def test_body_rate_integrates_to_attitude(short: Truth) -> None:
+def test_body_rate_integrates_to_attitude(drive: Truth) -> None:
     """Exponential map of the trapezoid-mean rate per step: < 0.001 deg after 2 min."""
-    w = short.w_ib_b
-    steps = Rotation.from_rotvec(0.5 * short.dt_s * (w[1:] + w[:-1]))
-    c = Rotation.from_matrix(c_bn_of(short)[0])
+    w = drive.w_ib_b
+    steps = Rotation.from_rotvec(0.5 * drive.dt_s * (w[1:] + w[:-1]))
+    c = Rotation.from_matrix(c_bn_of(drive)[0])
     integrated = [c]
     for step in steps:
         c = c * step
         integrated.append(c)
-    error = Rotation.concatenate(integrated).inv() * Rotation.from_matrix(c_bn_of(short))
+    error = Rotation.concatenate(integrated).inv() * Rotation.from_matrix(c_bn_of(drive))
     assert np.degrees(error.magnitude().max()) < 1e-3
 
 
-def test_velocity_integrates_to_position(short: Truth) -> None:
+def test_velocity_integrates_to_position(drive: Truth) -> None:
     """Trapezoid integration of vel_ned_mps from the first position: < 0.1 mm after 2 min."""
-    v = short.vel_ned_mps
-    steps = 0.5 * short.dt_s * (v[1:] + v[:-1])
-    pos = short.pos_ned_m[0] + np.concatenate((np.zeros((1, 3)), np.cumsum(steps, axis=0)))
-    assert np.abs(pos - short.pos_ned_m).max() < 1e-4
+    v = drive.vel_ned_mps
+    steps = 0.5 * drive.dt_s * (v[1:] + v[:-1])
+    pos = drive.pos_ned_m[0] + np.concatenate((np.zeros((1, 3)), np.cumsum(steps, axis=0)))
+    assert np.abs(pos - drive.pos_ned_m).max() < 1e-4
 
 
-def test_specific_force_is_imu_acceleration_minus_gravity(short: Truth) -> None:
+def test_specific_force_is_imu_acceleration_minus_gravity(drive: Truth) -> None:
     """C_bn f_ib_b_imu + g equals the central second difference of the IMU position."""
-    c_bn = c_bn_of(short)
-    p_imu = short.pos_ned_m + c_bn @ short.imu_lever_arm_m
-    a_num = (p_imu[2:] - 2.0 * p_imu[1:-1] + p_imu[:-2]) / short.dt_s**2
-    a_truth = np.einsum("nij,nj->ni", c_bn, short.f_ib_b_imu) + G_NED
+    c_bn = c_bn_of(drive)
+    p_imu = drive.pos_ned_m + c_bn @ drive.imu_lever_arm_m
+    a_num = (p_imu[2:] - 2.0 * p_imu[1:-1] + p_imu[:-2]) / drive.dt_s**2
+    a_truth = np.einsum("nij,nj->ni", c_bn, drive.f_ib_b_imu) + G_NED
     assert np.abs(a_num - a_truth[1:-1]).max() < 2e-3  # m/s^2; dt^2 terms and rounding
     assert np.abs(a_truth).max() > 1.0  # the check is not vacuous: turns and bumps
 
 
-def test_antenna_position_and_velocity_include_lever_arm(short: Truth) -> None:
-    c_bn = c_bn_of(short)
+def test_antenna_position_and_velocity_include_lever_arm(drive: Truth) -> None:
+    c_bn = c_bn_of(drive)
     assert_allclose(
-        short.pos_ant_ned_m, short.pos_ned_m + c_bn @ short.antenna_lever_arm_m, atol=1e-9
+        drive.pos_ant_ned_m, drive.pos_ned_m + c_bn @ drive.antenna_lever_arm_m, atol=1e-9
     )
-    v_num = (short.pos_ant_ned_m[2:] - short.pos_ant_ned_m[:-2]) / (2.0 * short.dt_s)
-    assert np.abs(v_num - short.vel_ant_ned_mps[1:-1]).max() < 1e-4
-    lever_speed = np.linalg.norm(short.vel_ant_ned_mps - short.vel_ned_mps, axis=1)
+    v_num = (drive.pos_ant_ned_m[2:] - drive.pos_ant_ned_m[:-2]) / (2.0 * drive.dt_s)
+    assert np.abs(v_num - drive.vel_ant_ned_mps[1:-1]).max() < 1e-4
+    lever_speed = np.linalg.norm(drive.vel_ant_ned_mps - drive.vel_ned_mps, axis=1)
     assert lever_speed.max() > 0.1  # roll rates on bumps move a 3 m mast by > 10 cm/s
-    assert_allclose(lla_to_ned(short.lla, short.origin_lla), short.pos_ned_m, atol=1e-6)
-    assert_allclose(lla_to_ned(short.lla_ant, short.origin_lla), short.pos_ant_ned_m, atol=1e-6)
+    assert_allclose(lla_to_ned(drive.lla, drive.origin_lla), drive.pos_ned_m, atol=1e-6)
+    assert_allclose(lla_to_ned(drive.lla_ant, drive.origin_lla), drive.pos_ant_ned_m, atol=1e-6)
+
+
+def test_the_chassis_pitches_against_its_track_and_steps_over_headlands(
+    short: Truth, lifting: Truth
+) -> None:
+    """The track is the terrain's either way; the body is pitched about its own y axis by
+    0.5 deg working and 1.5 deg from the end of each pass to the start of the next, so the
+    reference point moves along body x at tan(-pitch against the track) (FRD: a nose-up
+    chassis on level track sees its velocity below body x)."""
+    assert_allclose(lifting.pos_ned_m, short.pos_ned_m, atol=1e-12)
+    v_b = np.einsum("nji,nj->ni", c_bn_of(lifting), lifting.vel_ned_mps)
+    moving = np.abs(v_b[:, 0]) > 0.5
+    c_deg = np.degrees(np.arctan2(v_b[moving, 2], v_b[moving, 0]))
+    on_pass = np.zeros(len(lifting), dtype=bool)
+    for r in passes(lifting, 0.0):
+        on_pass[r[615:-615]] = True  # 3 s clear of the pass ends, where the hitch moves
+    assert_allclose(c_deg[on_pass[moving]], 0.5, atol=1e-9)
+    headland = ~on_pass[moving]
+    assert np.isclose(c_deg[headland], 1.5, atol=1e-9).sum() > 0.5 * headland.sum()
+    assert c_deg.min() > 0.5 - 1e-9 and c_deg.max() < 1.5 + 1e-9
 
 
 def test_body_z_is_the_terrain_normal(short: Truth) -> None:
