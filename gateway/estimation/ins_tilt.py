@@ -43,6 +43,13 @@ BLOCK_CELLS = 5
 SEGMENT_M = 50.0
 #: ... and shorter ones (at the end of a stretch) are not used: their end heights dominate.
 MIN_SEGMENT_M = 20.0
+#: A segment ends where the vehicle turns faster than this (rad/s: 5 deg/s, a 34 m radius
+#: at 3 m/s; headland turns are 10-20 deg/s, contours under 2): at the headland the
+#: implement is lifted, pitching the chassis on its tyres against the ground, as the roll
+#: turns over. Segments through the turns of `field`, the chassis 0.5 deg and 1 deg more
+#: over each headland, fitted a pitch from roll of a 9-25 deg mounting yaw (1.1-1.7 of the
+#: bound: a false verdict at 211-241 s, both engines); without them 0.13-0.35.
+SEGMENT_TURN_RATE_RPS = math.radians(5.0)
 _EARTH_RADIUS_M = 6_371_000.0
 _OPPOSITE_RAD = 0.75 * math.pi  # headings at least this far apart count as opposite
 _SAME_RAD = 0.25 * math.pi  # ... at most this far apart as the same way
@@ -225,7 +232,8 @@ class InsTilt:
         ds_m = fix.sog_mps * dt_s
         self._forward_m += ds_m
         self._roll(sol, ds_m, learnt)
-        if learnt and math.isfinite(self.sigma_tilt_rad):
+        turning = sol.yaw_rate_rps is not None and abs(sol.yaw_rate_rps) > SEGMENT_TURN_RATE_RPS
+        if learnt and math.isfinite(self.sigma_tilt_rad) and not turning:
             self._pitch(sol, ds_m, fix.alt_m)
         else:
             self._end_segment()

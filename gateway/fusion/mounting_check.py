@@ -6,19 +6,20 @@ frame. The roll and pitch sent are off by it while the accuracy stated is the en
 mounting left unset on a unit bolted 3 deg nose-up: pitch 3 deg off, 0.06 deg stated). The
 drive shows it: :class:`~gateway.estimation.ins_tilt.InsTilt` on the engine's solutions, as
 ``navgw calibrate`` does on its own observer's (pitch against the RTK track's slope, roll
-over the same ground driven both ways). A mounting yaw tilts nothing on level ground, but
-on a side slope it turns the roll into the axes' pitch (pitch off by roll x sin(yaw)): the
+over the same ground driven both ways). A mounting yaw tilts nothing on level ground, but on
+a side slope it turns the roll into the axes' pitch (pitch off by roll x sin(yaw)): the
 segments' pitch against their roll
-(:meth:`~gateway.estimation.ins_tilt.InsTilt.roll_coupling`). Once the roll or pitch is off
-by more than ``SIGMAS`` of its 1-sigma plus ``OFFSET_TOLERANCE_DEG`` (what a chassis leans
-on its tyres), or the pitch from roll at the roll driven (RMS) by more than ``SIGMAS`` of
-its plus ``COUPLING_TOLERANCE_DEG``, from at least ``MIN_BLOCKS`` blocks of driving,
-:attr:`MountingCheck.off` is set and the core sends DEGRADED (SPEC 4: a value beyond its
-stated accuracy goes out only with NAVGW_STATUS saying so) until restarted: the mounting
-does not change while the service runs, and an estimate near its bound would flicker (the
-EKF on field with a 3, -2, 4 deg mounting: off at 211 s, within at 231, off from 271). The
-mounting itself is never changed while running (``navgw calibrate``, or the live estimate's
-line in the log, gives the one to configure).
+(:meth:`~gateway.estimation.ins_tilt.InsTilt.roll_coupling`; the segments leave out the
+turns, where an implement lifted at the headland pitches the chassis as the roll turns
+over). Once the roll or pitch is off by more than ``SIGMAS`` of its 1-sigma plus
+``OFFSET_TOLERANCE_DEG`` (what a chassis leans on its tyres), or the pitch from roll at the
+roll driven (RMS) by more than ``SIGMAS`` of its plus ``COUPLING_TOLERANCE_DEG``, from at
+least ``MIN_BLOCKS`` blocks of driving, :attr:`MountingCheck.off` is set and the core sends
+DEGRADED (SPEC 4: a value beyond its stated accuracy goes out only with NAVGW_STATUS saying
+so) until restarted: the mounting does not change while the service runs, and an estimate
+near its bound would flicker (the EKF on field with a 3, -2, 4 deg mounting: off at 211 s,
+within at 231, off from 271). The mounting itself is never changed while running (``navgw
+calibrate``, or the live estimate's line in the log, gives the one to configure).
 
 Per GNSS epoch only, nothing per IMU sample; the estimate is looked at every
 ``CHECK_INTERVAL_S`` of fix time (the roll's cells are summed then). On flat ground a
