@@ -2,8 +2,10 @@
 
 The reference point moves on the level plane through segments of constant longitudinal
 acceleration and constant yaw rate (straight, circles, stops, reversing: speed may be negative)
-with a constant roll and pitch; position, velocity and acceleration are closed-form, so IMU and
-GNSS streams are exact to floating point. IMU values of the sample closing [t - dt, t] are
+with a constant roll and pitch (but a roll rocking or the chassis's pitch stepping, whose
+angular acceleration the IMU's lever arm is not given: keep the IMU at the reference point
+there); position, velocity and acceleration are closed-form, so IMU and GNSS streams are exact
+to floating point. IMU values of the sample closing [t - dt, t] are
 evaluated at the interval midpoint (second-order accurate, like an averaging IMU); GNSS epochs
 are exact at their epoch time and arrive ``latency_s`` later on the host clock.
 
