@@ -20,7 +20,7 @@ import pytest
 
 from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection, load_config
 from gateway.estimation.observer.observer_config import ObserverConfig
-from gateway.estimation.solution import LearnedState, Mode
+from gateway.estimation.solution import LearnedState, Mode, Solution
 from gateway.fusion.engines import make_engine
 from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, SimRun, generate
@@ -268,6 +268,44 @@ def test_a_gross_x_bias_leaves_the_pitch_on_the_first_straight(chassis_deg: floa
     assert last < 0.2 * min(parked) + abs(chassis_deg), last
 
 
+#: The x/y/z accelerometer bias of the U-turn drives, m/s^2.
+U_TURN_B_A_MPS2 = (0.03, -0.02, 0.0)
+
+
+def u_turns(rows: int) -> list[Segment]:
+    """Parked 15 s, off at 0.5 m/s^2, ``rows`` rows of 40 s each ended by a 12 s U-turn (the
+    first at 60-72 s), both ways in turn, and a last row."""
+    segments = [Segment(15.0), Segment(5.0, accel_mps2=0.5)]
+    for k in range(rows):
+        segments += [Segment(40.0), Segment(12.0, yaw_rate_rps=math.pi / 12.0 * (-1) ** k)]
+    return [*segments, Segment(40.0)]
+
+
+def pitch_after_the_first_turn(drive: Motion, engine: Engine) -> tuple[list[str], int, Solution]:
+    """``engine`` on ``drive`` (biases, noise, a 3 m mast): the never-lie check of every 20th
+    pitch sent from 75 s (the first U-turn's end) against the truth: the lines beyond, the
+    number checked, and the last solution."""
+    cfg = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=(0.3, 0.0, -3.0)))
+    cfg = cfg.with_engine(engine)
+    imu = imu_stream(drive, bias_g_rps=(0.001, -0.001, 0.0005), bias_a_mps2=U_TURN_B_A_MPS2,
+                     noise_g_rps=0.003, noise_a_mps2=0.02, seed=7)  # fmt: skip
+    fixes = gnss_stream(drive, antenna_lever_arm_m=cfg.vehicle.antenna_lever_arm_m,
+                        vel_noise_mps=0.02)  # fmt: skip
+    estimator = make_engine(cfg)
+    beyond, checked = [], 0
+    for k, s in fed(estimator, imu, fixes):
+        t = motion_time(s.t)
+        if k % 20 or t < 75.0:
+            continue
+        sol = estimator.solution()
+        assert sol.pitch_rad is not None and sol.sigma_tilt_rad is not None
+        true_pitch = -math.asin(state_at(drive, t).c_bn[0, 2, 0])
+        off_deg = math.degrees(abs(sol.pitch_rad - true_pitch))
+        checked += 1
+        beyond += beyond_stated(t, off_deg, sol.sigma_tilt_rad)
+    return beyond, checked, sol
+
+
 @pytest.mark.parametrize("chassis_deg", [0.5, -0.5])
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF], ids=["observer", "ekf"])
 def test_a_chassis_pitched_on_its_tyres_is_not_read_as_accelerometer_bias(
@@ -281,38 +319,14 @@ def test_a_chassis_pitched_on_its_tyres_is_not_read_as_accelerometer_bias(
     climb: from the first turn on every pitch sent within 0.1 deg + 3 stated sigmas, and
     the x bias learnt within 0.01 m/s^2."""
     chassis = math.radians(chassis_deg)
-    segments = [Segment(15.0), Segment(5.0, accel_mps2=0.5)]
-    for k in range(4):
-        u_turn = math.pi / 12.0 * (1 if k % 2 == 0 else -1)
-        segments += [Segment(40.0), Segment(12.0, yaw_rate_rps=u_turn)]
     drive = Motion(
-        [*segments, Segment(40.0)],
-        yaw0_rad=0.7,
-        pitch_rad=math.radians(2.0) + chassis,
-        chassis_pitch_rad=chassis,
+        u_turns(4), yaw0_rad=0.7, pitch_rad=math.radians(2.0) + chassis, chassis_pitch_rad=chassis
     )
-    cfg = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=(0.3, 0.0, -3.0)))
-    cfg = cfg.with_engine(engine)
-    b_a = (0.03, -0.02, 0.0)
-    imu = imu_stream(drive, bias_g_rps=(0.001, -0.001, 0.0005), bias_a_mps2=b_a,
-                     noise_g_rps=0.003, noise_a_mps2=0.02, seed=7)  # fmt: skip
-    fixes = gnss_stream(drive, antenna_lever_arm_m=cfg.vehicle.antenna_lever_arm_m,
-                        vel_noise_mps=0.02)  # fmt: skip
-    estimator = make_engine(cfg)
-    beyond, checked = [], 0
-    for k, s in fed(estimator, imu, fixes):
-        t = motion_time(s.t)
-        if k % 20 or t < 75.0:  # the first U-turn ends at 72 s
-            continue
-        sol = estimator.solution()
-        assert sol.pitch_rad is not None and sol.sigma_tilt_rad is not None
-        off = math.degrees(abs(sol.pitch_rad - drive.pitch_rad))
-        checked += 1
-        beyond += beyond_stated(t, off, sol.sigma_tilt_rad)
+    beyond, checked, sol = pitch_after_the_first_turn(drive, engine)
     assert checked > 1500
     assert not beyond, beyond[:5]
     assert sol.bias_a_mps2 is not None
-    assert abs(sol.bias_a_mps2[0] - b_a[0]) < 0.01, sol.bias_a_mps2
+    assert abs(sol.bias_a_mps2[0] - U_TURN_B_A_MPS2[0]) < 0.01, sol.bias_a_mps2
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF], ids=["observer", "ekf"])
@@ -327,37 +341,13 @@ def test_an_implement_lifted_through_every_headland_does_not_walk_the_x_bias(
     eight the pitch went out 0.4-1.1 deg off with 0.09 stated. Ten rows on a 2 deg climb:
     every pitch sent after the first turn within 0.1 deg + 3 stated sigmas, the x bias
     within 0.01 m/s^2 at the end."""
-    segments = [Segment(15.0), Segment(5.0, accel_mps2=0.5)]
-    steps, t = [], 20.0
-    for k in range(10):
-        segments += [Segment(40.0), Segment(12.0, yaw_rate_rps=math.pi / 12.0 * (-1) ** k)]
-        lift = ChassisStep(t + 37.0, math.radians(1.0))
-        steps += [lift, ChassisStep(t + 52.0, -lift.d_rad)]
-        t += 52.0
-    drive = Motion(
-        [*segments, Segment(40.0)], yaw0_rad=0.7, pitch_rad=math.radians(2.0), chassis_steps=steps
-    )
-    cfg = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=(0.3, 0.0, -3.0)))
-    cfg = cfg.with_engine(engine)
-    b_a = (0.03, -0.02, 0.0)
-    imu = imu_stream(drive, bias_g_rps=(0.001, -0.001, 0.0005), bias_a_mps2=b_a,
-                     noise_g_rps=0.003, noise_a_mps2=0.02, seed=7)  # fmt: skip
-    fixes = gnss_stream(drive, antenna_lever_arm_m=cfg.vehicle.antenna_lever_arm_m,
-                        vel_noise_mps=0.02)  # fmt: skip
-    estimator = make_engine(cfg)
-    beyond, checked = [], 0
-    for k, s in fed(estimator, imu, fixes):
-        t = motion_time(s.t)
-        if k % 20 or t < 75.0:  # the first U-turn ends at 72 s
-            continue
-        sol = estimator.solution()
-        assert sol.pitch_rad is not None and sol.sigma_tilt_rad is not None
-        true_pitch = -math.asin(state_at(drive, t).c_bn[0, 2, 0])
-        checked += 1
-        beyond += beyond_stated(
-            t, math.degrees(abs(sol.pitch_rad - true_pitch)), sol.sigma_tilt_rad
-        )
+    lift = math.radians(1.0)
+    steps = []
+    for k in range(10):  # row k's U-turn is at 60 + 52 k s
+        steps += [ChassisStep(57.0 + 52.0 * k, lift), ChassisStep(72.0 + 52.0 * k, -lift)]
+    drive = Motion(u_turns(10), yaw0_rad=0.7, pitch_rad=math.radians(2.0), chassis_steps=steps)
+    beyond, checked, sol = pitch_after_the_first_turn(drive, engine)
     assert checked > 5000
     assert not beyond, beyond[:5]
     assert sol.bias_a_mps2 is not None
-    assert abs(sol.bias_a_mps2[0] - b_a[0]) < 0.01, sol.bias_a_mps2
+    assert abs(sol.bias_a_mps2[0] - U_TURN_B_A_MPS2[0]) < 0.01, sol.bias_a_mps2
