@@ -520,10 +520,8 @@ def _pitch_chassis(
     """Attitude, body rate and its derivative of a body pitched by ``c`` (rad, with its time
     derivatives ``c1``, ``c2``) about its own y axis: C <- C R_y(c),
     w <- R_y^T w + c' e_y, w' <- R_y^T w' - c' e_y x (R_y^T w) + c'' e_y."""
-    cc, sc = np.cos(c), np.sin(c)
-    r_y = np.zeros((len(c), 3, 3))
-    r_y[:, 0, 0], r_y[:, 0, 2], r_y[:, 1, 1] = cc, sc, 1.0
-    r_y[:, 2, 0], r_y[:, 2, 2] = -sc, cc
+    zero = np.zeros_like(c)
+    r_y = dcm_from_rpy_array(np.column_stack((zero, c, zero)))
     w_new = np.einsum("nji,nj->ni", r_y, w_b)
     dw_new = np.einsum("nji,nj->ni", r_y, dw_b)
     dw_new -= np.cross(c1[:, None] * np.array([0.0, 1.0, 0.0]), w_new)
