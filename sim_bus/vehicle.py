@@ -501,6 +501,11 @@ def _chassis_pitch(
     c = np.full(len(t_s), math.radians(cfg.chassis_pitch_deg))
     c1, c2 = np.zeros_like(c), np.zeros_like(c)
     lift, ramp = math.radians(cfg.implement_lift_deg), cfg.implement_lift_s
+    if lift and not ramp > 0.0:
+        raise ValueError(
+            f"implement_lift_s={ramp} with implement_lift_deg={cfg.implement_lift_deg}: "
+            "expected the lift's duration, s > 0"
+        )
     work = [p.work for p in path.pieces]
     for k in range(1, len(work)):
         if work[k] == work[k - 1]:

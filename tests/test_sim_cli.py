@@ -66,6 +66,25 @@ def test_the_named_scenario_is_the_base_of_a_config_without_one(
     assert "base = 'field', but the command names 'short'" in err
 
 
+@pytest.mark.parametrize(
+    ("vehicle", "said"),
+    [
+        ("implement_lift_deg = 1.0\nimplement_lift_s = 0.0", "implement_lift_s=0.0"),
+        ("turn_transition_m = 100.0", "turn_transition_m=100.0 must be in"),
+    ],
+)
+def test_a_vehicle_the_model_cannot_drive_is_a_message_not_a_traceback(
+    vehicle: str, said: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Values of the right type that the vehicle model cannot drive (a hitch lifting in no
+    time divided by zero) exit 2 with the key and what was expected."""
+    config = tmp_path / "bad.toml"
+    config.write_text(f'base = "short"\n[vehicle]\n{vehicle}\n')
+    assert main(["sim", "--config", str(config), "--out", str(tmp_path / "out")]) == 2
+    err = capsys.readouterr().err
+    assert err.startswith("navgw sim: short*: ") and said in err, err
+
+
 def test_sim_help_names_the_out_option_as_a_directory(
     capsys: pytest.CaptureFixture[str],
 ) -> None:

@@ -69,7 +69,11 @@ def run(args: argparse.Namespace) -> int:
         return 2
     out_dir = args.out or Path(f"sim-{scenario.name.rstrip('*')}")
     t_wall = time.perf_counter()
-    result = generate(scenario, out_dir, args.seed)
+    try:
+        result = generate(scenario, out_dir, args.seed)
+    except ValueError as err:  # the vehicle model's checks of what the config asks of it
+        print(f"navgw sim: {scenario.name}: {err}", file=sys.stderr)
+        return 2
     wall = time.perf_counter() - t_wall
     print(
         f"{scenario.name}: {result.duration_s:.0f} s simulated in {wall:.1f} s, "
