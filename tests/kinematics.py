@@ -61,7 +61,8 @@ class Motion:
     Speeds and accelerations are horizontal; the vehicle moves along its body x axis, as a
     wheeled one does, so with pitch it climbs (or descends) tan(pitch - chassis pitch) per
     metre (the chassis's own pitch against its track: a load, a lifted implement). Roll may
-    rock about the reference point: roll + rock sin(2 pi rock_hz t). ``chassis_steps`` pitch
+    rock about the reference point: roll + rock sin(2 pi rock_hz (t - rock_from_s)) from
+    rock_from_s on. ``chassis_steps`` pitch
     the body and the chassis together about the reference point, the track unchanged."""
 
     segments: Sequence[Segment]
@@ -71,6 +72,7 @@ class Motion:
     pitch_rad: float = 0.0
     rock_rad: float = 0.0  # amplitude of a roll rocking about the reference point (rough ground)
     rock_hz: float = 0.0
+    rock_from_s: float = 0.0  # the rocking starts here (rough ground begins; parked, none)
     chassis_pitch_rad: float = 0.0
     chassis_steps: Sequence[ChassisStep] = ()
 
@@ -148,7 +150,8 @@ def state_at(motion: Motion, t: npt.ArrayLike) -> State:
         axis=1,
     )
     w_rock = 2.0 * math.pi * motion.rock_hz
-    roll = r + motion.rock_rad * np.sin(w_rock * tt)
+    rocking = motion.rock_rad * (tt >= motion.rock_from_s)
+    roll = r + rocking * np.sin(w_rock * (tt - motion.rock_from_s))
     pitch, pitch_rate = np.full(n, th), np.zeros(n)
     for step in motion.chassis_steps:
         u = np.clip((tt - step.t_s) / step.ramp_s, 0.0, 1.0)
@@ -162,7 +165,7 @@ def state_at(motion: Motion, t: npt.ArrayLike) -> State:
     c_bn[:, 2] = np.stack((-sp, cp * sr, cp * cr), axis=1)
     # Euler kinematics: w_b = (roll rate - yaw rate sin(pitch), pitch rate cos(roll) + ...)
     w_b = rate[i][:, None] * np.stack((-sp, sr * cp, cr * cp), axis=1)
-    w_b[:, 0] += motion.rock_rad * w_rock * np.cos(w_rock * tt)
+    w_b[:, 0] += rocking * w_rock * np.cos(w_rock * (tt - motion.rock_from_s))
     w_b[:, 1] += pitch_rate * cr
     w_b[:, 2] -= pitch_rate * sr
     return State(p_ned, v_ned, a_ned, yaw % (2 * math.pi), c_bn, w_b)
@@ -178,7 +181,9 @@ def imu_stream(
     seed: int = 0,
     dt_s: float = IMU_DT_S,
 ) -> list[ImuSample]:
-    """IMU samples over the motion, body FRD, with constant biases and white noise."""
+    """IMU samples over the motion, body FRD, with constant biases and white noise; the
+    IMU at ``imu_lever_arm_m`` from the reference point feels its centripetal and tangential
+    acceleration (the latter as the mean over the sample: the rate's change over it)."""
     n = int(motion.duration_s / dt_s)
     t = (np.arange(n) + 1) * dt_s
     st = state_at(motion, t - 0.5 * dt_s)
@@ -186,7 +191,10 @@ def imu_stream(
     g = np.array([0.0, 0.0, GRAVITY_MPS2])
     f_n = st.a_ned_mps2 - g
     f_b = np.einsum("nji,nj->ni", st.c_bn, f_n)
-    f_b += np.cross(st.w_b_rps, np.cross(st.w_b_rps, l_imu))  # constant rate: centripetal only
+    f_b += np.cross(st.w_b_rps, np.cross(st.w_b_rps, l_imu))
+    if l_imu.any():
+        w_dot = (state_at(motion, t).w_b_rps - state_at(motion, t - dt_s).w_b_rps) / dt_s
+        f_b += np.cross(w_dot, l_imu)
     rng = np.random.default_rng(seed)
     w_b = st.w_b_rps + np.asarray(bias_g_rps) + noise_g_rps * rng.standard_normal((n, 3))
     f_b = f_b + np.asarray(bias_a_mps2) + noise_a_mps2 * rng.standard_normal((n, 3))

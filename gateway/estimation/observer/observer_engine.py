@@ -100,12 +100,16 @@ HISTORY_LEN = 1024
 ALIGN_TIMEOUT_S = 10.0
 #: Time constant of the running estimate of the tilt-residual noise (roll/pitch sigma).
 E_NOISE_TAU_S = 10.0
-#: Body rate for the lever-arm velocity: mean over this long, centred on the epoch (the
-#: history already holds the samples after it, the receiver being ~70 ms late). One ADIS16334
-#: sample is ~0.5 deg/s noisy (ARW 2 deg/rt-h at 204.8 Hz), 2.5 cm/s on a 3 m mast; 0.1 s
-#: averages that to 0.8 cm/s, and centring removes the lag that a trailing window has (bumps
-#: rock the mast at 0.3-1 Hz, 0.3 m/s at its top: 25 ms of lag cost 5 cm/s).
+#: Body rate for the lever-arm velocity: mean over up to this long, centred on the
+#: epoch (the history already holds the samples after it, the receiver being ~70 ms late;
+#: :meth:`ObserverEngine._lever_rate`). One ADIS16334 sample is ~0.5 deg/s noisy (ARW 2
+#: deg/rt-h at 204.8 Hz), 2.5 cm/s on a 3 m mast; 0.1 s averages that to 0.8 cm/s, and
+#: centring removes the lag that a trailing window has (bumps rock the mast at 0.3-1 Hz,
+#: 0.3 m/s at its top: 25 ms of lag cost 5 cm/s).
 LEVER_RATE_WINDOW_S = 0.1
+#: ... shrunk to what the history holds after the epoch, both sides alike, down to this much
+#: a side (s): below it the noise would cost more than a window cut on one side lags.
+LEVER_RATE_MIN_HALF_S = 0.025
 #: Rate of turn output: mean body rate over this long before the last sample.
 OUTPUT_RATE_WINDOW_S = 0.05
 #: History rows searched first for a time (:meth:`ObserverEngine._history_at`).
@@ -663,8 +667,7 @@ class ObserverEngine:
             self._update_gates(t_e, ok=False)
             self._correct_position(fix, t_e, row, c_bn, None)
             return
-        half = 0.5 * LEVER_RATE_WINDOW_S
-        w_lever = self._mean_rate(t_e - half, self._history_at(t_e + half) or row)
+        w_lever = self._lever_rate(t_e, row)
         c_e = self._attitude_at(row, c_bn)
         v_ant = self._antenna_velocity(fix, t_e, row, c_e, w_lever)
         if v_ant is None:
@@ -1082,6 +1085,17 @@ class ObserverEngine:
             c_bn,
             exp_so3_9(row[_WI_X] - last[_WI_X], row[_WI_Y] - last[_WI_Y], row[_WI_Z] - last[_WI_Z]),
         )
+
+    def _lever_rate(self, t_e: float, row: _Row) -> Float3:
+        """Body rate at epoch time ``t_e`` for the lever-arm velocities (``row`` the history
+        at ``t_e``): the mean over ``LEVER_RATE_WINDOW_S`` centred on it, or over as much as
+        the history holds after it on both sides, down to ``LEVER_RATE_MIN_HALF_S`` a side.
+        A receiver less than half the window late cut the window on one side only, and a
+        window cut so lags: 5 ms for one 40 ms late, 3.5 cm/s of a 3 m mast rocking +/-1.5
+        deg at 1.5 Hz, which the accel-bias filter took for y bias (rocking +/-2 deg at 2 Hz
+        through four U-turns: roll/pitch 0.18 deg RMS, 0.49 at worst; now 0.08 and 0.23)."""
+        h = max(min(0.5 * LEVER_RATE_WINDOW_S, self._hist[-1][_T] - t_e), LEVER_RATE_MIN_HALF_S)
+        return self._mean_rate(t_e - h, self._history_at(t_e + h) or row)
 
     def _mean_rate(self, t0_s: float, row: _Row) -> Float3:
         """Mean bias-corrected body rate over [t0_s, row time], from the history, rad/s."""
