@@ -46,6 +46,13 @@ from tests.n2k_check import (
     tilt_beyond_stated,
 )
 
+#: rough-slope's vehicle: 3x the bumps, 6-9 deg side slopes, 4 deg along
+ROUGH_GROUND = {
+    "bump_amplitude_m": 0.03,
+    "side_slope_min_deg": 6.0,
+    "side_slope_max_deg": 9.0,
+    "along_slope_deg": 4.0,
+}
 #: Variant name -> (what it changes, scenario overrides on the field preset).
 VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "default": ("field preset: 10 Hz, ~68 ms to the last sentence, UTC host clock", {}),
@@ -53,6 +60,17 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     "gnss-5hz": ("5 Hz receiver", {"gnss": {"rate_hz": 5.0}}),
     "gnss-20hz": ("20 Hz receiver", {"gnss": {"rate_hz": 20.0}}),
     "latency-150ms": ("150 ms receiver latency", {"gnss": {"latency_s": 0.15}}),
+    "latency-0ms": (
+        "sentences ready at their epoch (the last ~28 ms after it, the serial link's time)",
+        {"gnss": {"latency_s": 0.0}},
+    ),
+    "rough-prompt": (
+        "rough-slope's ground, sentences ready at their epoch",
+        {
+            "gnss": {"latency_s": 0.0},
+            "vehicle": ROUGH_GROUND,
+        },
+    ),
     "host-clock-free": (
         "host clock 30 s off UTC (no NTP/PPS): epochs from receive time - default 50 ms",
         {"gnss": {"host_clock_offset_s": 30.0}},
@@ -104,14 +122,7 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
     ),
     "rough-slope": (
         "3x the bumps, 6-9 deg side slopes, 4 deg along",
-        {
-            "vehicle": {
-                "bump_amplitude_m": 0.03,
-                "side_slope_min_deg": 6.0,
-                "side_slope_max_deg": 9.0,
-                "along_slope_deg": 4.0,
-            }
-        },
+        {"vehicle": ROUGH_GROUND},
     ),
     "implement-lift": (
         "chassis pitched 0.5 deg on its tyres, 1 deg more (in 2 s) over every headland",

@@ -392,8 +392,11 @@ def test_an_imu_twice_as_noisy_as_its_datasheet_learns_the_x_bias_in_its_turns(
     assert abs(sol.bias_a_mps2[0] - U_TURN_B_A_MPS2[0]) < 0.01, sol.bias_a_mps2
 
 
+@pytest.mark.parametrize("latency_s", [0.0, 0.04, 0.07])
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF], ids=["observer", "ekf"])
-def test_rocking_on_rough_ground_the_lever_arm_velocities_are_the_moments(engine: Engine) -> None:
+def test_rocking_on_rough_ground_the_lever_arm_velocities_are_the_moments(
+    engine: Engine, latency_s: float
+) -> None:
     """Rough ground rocks the body about the wheels (here +/-2 deg at 2 Hz through four
     U-turns), the antenna on its 3 m mast swaying at 0.8 m/s and the IMU, 1 m above the
     axle, at 0.26. Both engines take the lever-arm velocities w x l from mean body rates,
@@ -401,11 +404,14 @@ def test_rocking_on_rough_ground_the_lever_arm_velocities_are_the_moments(engine
     - the EKF's non-holonomic constraint took w from the rate low-passed for the outputs,
       50 ms behind (with the next, 0.11 deg RMS; steep-turns seed 61 of `rough-slope`: pitch
       0.3 deg off with 0.06 stated);
-    - with a receiver 40 ms late (fewer samples after the epoch than the 50 ms the window
-      wants) both engines' windows for the antenna were cut on one side and lagged 5 ms,
-      and the observer's accel-bias filter took what that left for y bias (0.18 deg RMS,
-      0.49 at worst). The windows now shrink to what there is on both sides.
-    From the first turn on: roll/pitch within 0.09 deg RMS, every one sent within 0.1 deg
+    - a receiver 0-40 ms late leaves fewer samples after the epoch than the 50 ms the
+      antenna's window wants, and a window cut on one side lags: 5 ms at 40 ms late, 12 ms
+      at 0 (the 25 ms before the epoch), where the observer's roll and pitch went 3-9 deg
+      off with about 1 deg stated (1,609 of 1,977 checked beyond). The epoch now waits for
+      the samples after it;
+    - one centred mean keeps 93 % of a 2 Hz rate: the observer 0.17 deg RMS at any latency
+      once it waited, where curvature-free means give 0.057.
+    From the first turn on: roll/pitch within 0.08 deg RMS, every one sent within 0.1 deg
     + 3 stated sigmas."""
     l_imu = (0.5, 0.1, -1.0)
     drive = Motion(
@@ -416,7 +422,7 @@ def test_rocking_on_rough_ground_the_lever_arm_velocities_are_the_moments(engine
     imu = imu_stream(drive, imu_lever_arm_m=l_imu, bias_a_mps2=U_TURN_B_A_MPS2,
                      noise_g_rps=ADIS_GYRO_SAMPLE_NOISE_RPS, noise_a_mps2=0.02, seed=7)  # fmt: skip
     fixes = gnss_stream(drive, antenna_lever_arm_m=cfg.vehicle.antenna_lever_arm_m,
-                        latency_s=0.04, vel_noise_mps=0.02)  # fmt: skip
+                        latency_s=latency_s, vel_noise_mps=0.02)  # fmt: skip
     checked, _ = tilt_after_the_first_turn(cfg, drive, imu, fixes)
     assert len(checked) > 1500
     beyond = [line for t, r, p, sigma in checked
@@ -424,4 +430,4 @@ def test_rocking_on_rough_ground_the_lever_arm_velocities_are_the_moments(engine
     assert not beyond, beyond[:5]
     errors = [x for _, r, p, _ in checked for x in (r, p)]
     rms = math.sqrt(float(np.mean(np.square(errors))))
-    assert rms < 0.09, rms
+    assert rms < 0.08, rms

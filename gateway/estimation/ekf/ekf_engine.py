@@ -103,7 +103,10 @@ from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
+    LEVER_RATE_HALF_WIDTH_S,
+    LEVER_RATE_NOISE_GAIN,
     along_body_x,
+    centred_rate,
     heading_from_antenna_course,
     lever_arm_position_ned,
     lever_arm_velocity_ned,
@@ -137,8 +140,6 @@ EARTH_RATE_RPS = 7.292115e-5
 #: Below this GNSS speed the receiver's course is unreliable (held): direction unknown.
 COG_RELIABLE_SPEED_MPS = 0.1
 
-#: Half width of the window of body rates averaged for the antenna lever-arm velocity.
-LEVER_RATE_HALF_WIDTH_S = 0.05
 #: The non-holonomic constraint's reference-point lever-arm velocity takes the body rate
 #: averaged over this much of the past, s: 10 ms of lag where the outputs' low-pass has 50
 #: (one sample's gyro noise, 0.5 deg/s, cost the heading 2-5 % of its RMS).
@@ -626,15 +627,17 @@ class EkfEngine:
     def _lever_rate(self, t_e: float) -> tuple[Array, float]:
         """Body rate at ``t_e`` for the antenna lever-arm velocity, and that velocity's 1-sigma.
 
-        The history's mean over +/- ``LEVER_RATE_HALF_WIDTH_S`` (centred: no lag), or over as
-        much as there is after ``t_e`` (a receiver less than that late: cut on one side only,
-        the window lagged, 5 ms for one 40 ms late); its gyro noise, sqrt(q_g / 2h) times the
-        lever arm, is added to the velocity's sigma.
+        From the history's means about ``t_e`` (:func:`centred_rate`: no lag, no loss of a
+        rocking mast's rate; the epoch waits for the samples after it, :class:`HeldEpochs`);
+        its gyro noise, ``LEVER_RATE_NOISE_GAIN`` sqrt(q_g / 2h) times the lever arm, is
+        added to the velocity's sigma.
         """
-        assert self._hist is not None and self._tuning is not None and self._t_s is not None
-        h = max(min(LEVER_RATE_HALF_WIDTH_S, self._t_s - t_e), self._imu_dt_s)
-        sig_w = math.sqrt(self._tuning.q_gyro_rad2_per_s / (2.0 * h))
-        return self._hist.mean_rate(t_e, h), sig_w * self._l_imu_ant_m
+        assert self._hist is not None and self._tuning is not None
+        hist = self._hist
+        sig_w = LEVER_RATE_NOISE_GAIN * math.sqrt(
+            self._tuning.q_gyro_rad2_per_s / (2.0 * LEVER_RATE_HALF_WIDTH_S)
+        )
+        return np.array(centred_rate(lambda r: hist.mean_rate(t_e, r))), sig_w * self._l_imu_ant_m
 
     def _fuse_nonholonomic(self, t: float) -> None:
         """Zero lateral/vertical velocity of the reference point, at the current state.

@@ -58,8 +58,11 @@ from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
+    LEVER_RATE_HALF_WIDTH_S,
+    LEVER_RATE_NOISE_GAIN,
     along_body_x,
     antenna_velocity_along_body_x,
+    centred_rate,
     heading_from_antenna_course,
     lever_arm_position_ned,
     lever_arm_velocity_ned,
@@ -100,16 +103,6 @@ HISTORY_LEN = 1024
 ALIGN_TIMEOUT_S = 10.0
 #: Time constant of the running estimate of the tilt-residual noise (roll/pitch sigma).
 E_NOISE_TAU_S = 10.0
-#: Body rate for the lever-arm velocity: mean over up to this long, centred on the
-#: epoch (the history already holds the samples after it, the receiver being ~70 ms late;
-#: :meth:`ObserverEngine._lever_rate`). One ADIS16334 sample is ~0.5 deg/s noisy (ARW 2
-#: deg/rt-h at 204.8 Hz), 2.5 cm/s on a 3 m mast; 0.1 s averages that to 0.8 cm/s, and
-#: centring removes the lag that a trailing window has (bumps rock the mast at 0.3-1 Hz,
-#: 0.3 m/s at its top: 25 ms of lag cost 5 cm/s).
-LEVER_RATE_WINDOW_S = 0.1
-#: ... shrunk to what the history holds after the epoch, both sides alike, down to this much
-#: a side (s): below it the noise would cost more than a window cut on one side lags.
-LEVER_RATE_MIN_HALF_S = 0.025
 #: Rate of turn output: mean body rate over this long before the last sample.
 OUTPUT_RATE_WINDOW_S = 0.05
 #: History rows searched first for a time (:meth:`ObserverEngine._history_at`).
@@ -227,6 +220,7 @@ class ObserverEngine:
         self._position = PositionChannel(cfg.gnss_error_correlation_s, cfg.gnss_white_share)
         self._t_position_s = 0.0  # epoch time the position channel was predicted to
         self._l_imu_f = tuple(float(x) for x in cfg.imu_lever_arm_m)
+        self._l_imu_ant_m = math.dist(self._l_ant_f, self._l_imu_f)  # antenna to IMU, m
         # the constant terms of the roll/pitch variance (_sigma_tilt_rad)
         arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self._gyro_arw = arw  # rad/sqrt(s), the white rate noise measured where it is more
@@ -724,7 +718,8 @@ class ObserverEngine:
             if self._heading_aligned and self._ba_filter is not None
             else None
         )
-        glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed, sigma_v, track)
+        sigma_v_imu = math.hypot(sigma_v, self._lever_sigma_mps())
+        glitch = self._correct_tilt(t_e, v_tilt[0], v_tilt[1], row, closed, sigma_v_imu, track)
         if not closed:
             # moving before the heading and the direction of travel are known: the velocity is
             # in the receiver's azimuth, not the platform's, so no base for eq. (3)'s next
@@ -1088,14 +1083,20 @@ class ObserverEngine:
 
     def _lever_rate(self, t_e: float, row: _Row) -> Float3:
         """Body rate at epoch time ``t_e`` for the lever-arm velocities (``row`` the history
-        at ``t_e``): the mean over ``LEVER_RATE_WINDOW_S`` centred on it, or over as much as
-        the history holds after it on both sides, down to ``LEVER_RATE_MIN_HALF_S`` a side.
-        A receiver less than half the window late cut the window on one side only, and a
-        window cut so lags: 5 ms for one 40 ms late, 3.5 cm/s of a 3 m mast rocking +/-1.5
-        deg at 1.5 Hz, which the accel-bias filter took for y bias (rocking +/-2 deg at 2 Hz
-        through four U-turns: roll/pitch 0.18 deg RMS, 0.49 at worst; now 0.08 and 0.23)."""
-        h = max(min(0.5 * LEVER_RATE_WINDOW_S, self._hist[-1][_T] - t_e), LEVER_RATE_MIN_HALF_S)
-        return self._mean_rate(t_e - h, self._history_at(t_e + h) or row)
+        at ``t_e``), from the history's means about it (:func:`centred_rate`; the epoch
+        waits for the samples after it: :class:`HeldEpochs`). A window cut on one side lags:
+        5 ms for a receiver 40 ms late, 3.5 cm/s of a 3 m mast rocking +/-1.5 deg at 1.5 Hz,
+        which the accel-bias filter took for y bias (rocking +/-2 deg at 2 Hz through four
+        U-turns: roll/pitch 0.18 deg RMS, 0.49 at worst)."""
+        return centred_rate(lambda r: self._mean_rate(t_e - r, self._history_at(t_e + r) or row))
+
+    def _lever_sigma_mps(self) -> float:
+        """1-sigma of the antenna-to-IMU lever-arm velocity from :meth:`_lever_rate`'s gyro
+        noise, m/s: 0.6 cm/s on a 2 m lever arm at the ADIS16334's ARW, more on a noisier
+        unit, and the velocity chain of the accel-bias filter must know it (an IMU twice as
+        noisy as its datasheet learnt its x bias 0.02 m/s^2 off without it)."""
+        sigma_w = self._gyro_arw / math.sqrt(2.0 * LEVER_RATE_HALF_WIDTH_S)
+        return LEVER_RATE_NOISE_GAIN * sigma_w * self._l_imu_ant_m
 
     def _mean_rate(self, t0_s: float, row: _Row) -> Float3:
         """Mean bias-corrected body rate over [t0_s, row time], from the history, rad/s."""
