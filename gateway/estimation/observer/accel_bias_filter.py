@@ -113,6 +113,17 @@ NIS_WINDOW_S = 5.0
 NIS_WINDOW_Z = 4.75
 
 
+#: The x/y gyro bias error as learning starts: eq. (11)'s residual (0.01 deg/s, the engine's
+#: stated floor) doubled for the in-run wander it lags (0.011 deg/s over 100 s). The engine
+#: scales it as it scales that floor, by how much noisier than its config the IMU is
+#: measured at rest: a unit twice as noisy as its datasheet wandered 0.07 deg/s in its first
+#: 50 s (`short` seed 67 of `imu-noise-x2`), and against 0.02 the first U-turn read the
+#: tilt of that for y bias (0.06 m/s^2 off, roll 0.5 deg off with 0.15 stated). The engine's
+#: stated gyro and z accelerometer sigmas as these priors left more of a turn's tilt to the
+#: x/y accelerometer bias: hillside y 0.0060/0.0117 m/s^2 RMS, 0.0047/0.0091 with these.
+GYRO_BIAS_SIGMA0_RPS = 0.02 * DEG_TO_RAD
+
+
 @dataclass(frozen=True)
 class BiasFilterNoise:
     """What drives the filter's states, SI: white noise densities and Gauss-Markov sigmas."""
@@ -123,11 +134,8 @@ class BiasFilterNoise:
     gyro_bias_sigma_rps: float
     bias_correlation_s: float  # ... and correlation time
     tilt_sigma0_rad: float = 0.06 * DEG_TO_RAD  # the loop's noise beside the bias (floor)
-    # x/y gyro bias error as learning starts: eq. (11)'s residual (0.01 deg/s, the stated
-    # floor) doubled for the in-run wander it lags (0.011 deg/s over 100 s). The engine's
-    # stated gyro and z accelerometer sigmas as these priors left more of a turn's tilt to
-    # the x/y accelerometer bias: hillside y 0.0060/0.0117 m/s^2 RMS, 0.0047/0.0091 with these
-    gyro_bias_sigma0_rps: float = 0.02 * DEG_TO_RAD
+    # x/y gyro bias error as learning starts (the engine: GYRO_BIAS_SIGMA0_RPS, scaled)
+    gyro_bias_sigma0_rps: float = GYRO_BIAS_SIGMA0_RPS
     heading_sigma_rad: float = 0.3 * DEG_TO_RAD  # the heading channel's, Gauss-Markov ...
     heading_correlation_s: float = 10.0  # ... held by the course over ground
     # The chassis's pitch against its track, 1-sigma, and the time it takes to wander by

@@ -70,6 +70,7 @@ from gateway.estimation.lever_arm import (
     velocity_at,
 )
 from gateway.estimation.observer.accel_bias_filter import (
+    GYRO_BIAS_SIGMA0_RPS,
     NIS_WINDOW_S,
     AccelBiasFilter,
     BiasFilterNoise,
@@ -1391,7 +1392,8 @@ class ObserverEngine:
 
     def _bias_filter_noise(self) -> BiasFilterNoise:
         """The accel-bias filter's noise: the IMU's white noise as measured where it is more
-        than the config's (:meth:`_noise_as_measured`), the in-run wander of [imu]."""
+        than the config's (:meth:`_noise_as_measured`), the in-run wander of [imu], and the
+        gyro bias prior scaled as the stated floors are."""
         cfg = self.cfg
         return BiasFilterNoise(
             accel_psd=self._accel_psd,
@@ -1399,6 +1401,7 @@ class ObserverEngine:
             accel_bias_sigma_mps2=cfg.accel_bias_stability_mg * MG_MPS2 / GM_ALLAN_FLOOR,
             gyro_bias_sigma_rps=cfg.gyro_bias_stability_dps * DEG_TO_RAD / GM_ALLAN_FLOOR,
             bias_correlation_s=cfg.bias_correlation_time_s,
+            gyro_bias_sigma0_rps=GYRO_BIAS_SIGMA0_RPS * self._floor_scale,
         )
 
     def _velocity_rejected(self, t_e: float) -> bool:
