@@ -164,6 +164,7 @@ def run_variant(
             after_s = AFTER_S if span_s > 1.5 * AFTER_S else 0.5 * span_s
             att = attitude_errors_deg(decoded, truth, after_s)
             pos = position_errors_m(decoded, truth, after_s) * 100.0
+            pos = pos[np.isfinite(pos)]  # not the frames "not available" (an outage's)
             rms = np.sqrt(np.mean(np.square(att), axis=0))
             checked, beyond = tilt_beyond_stated(frames, truth)
             out[label] = (
