@@ -61,6 +61,14 @@ def centred_rate(mean_rate: Callable[[float], Vec]) -> Vec3:
     return (x, y, z)
 
 
+def centred_rate_velocity_sigma_mps(arw_rad_per_sqrt_s: float, lever_arm_m: float) -> float:
+    """1-sigma of the velocity w x l, m/s, that :func:`centred_rate`'s white gyro noise puts
+    on a lever arm ``lever_arm_m`` long, for a gyro of ``arw_rad_per_sqrt_s`` (its noise
+    and vibration as a density: one mean over +/- h has ARW / sqrt(2 h))."""
+    sigma_w = arw_rad_per_sqrt_s / math.sqrt(2.0 * LEVER_RATE_HALF_WIDTH_S)
+    return LEVER_RATE_NOISE_GAIN * sigma_w * lever_arm_m
+
+
 def _mat9(c_bn: Mat9 | npt.ArrayLike) -> Mat9:
     return c_bn if isinstance(c_bn, tuple) else to_mat9(c_bn)
 

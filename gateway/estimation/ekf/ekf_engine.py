@@ -103,10 +103,9 @@ from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
-    LEVER_RATE_HALF_WIDTH_S,
-    LEVER_RATE_NOISE_GAIN,
     along_body_x,
     centred_rate,
+    centred_rate_velocity_sigma_mps,
     heading_from_antenna_course,
     lever_arm_position_ned,
     lever_arm_velocity_ned,
@@ -629,15 +628,14 @@ class EkfEngine:
 
         From the history's means about ``t_e`` (:func:`centred_rate`: no lag, no loss of a
         rocking mast's rate; the epoch waits for the samples after it, :class:`HeldEpochs`);
-        its gyro noise, ``LEVER_RATE_NOISE_GAIN`` sqrt(q_g / 2h) times the lever arm, is
-        added to the velocity's sigma.
+        its gyro noise over the lever arm (:func:`centred_rate_velocity_sigma_mps`) is added
+        to the velocity's sigma.
         """
         assert self._hist is not None and self._tuning is not None
         hist = self._hist
-        sig_w = LEVER_RATE_NOISE_GAIN * math.sqrt(
-            self._tuning.q_gyro_rad2_per_s / (2.0 * LEVER_RATE_HALF_WIDTH_S)
-        )
-        return np.array(centred_rate(lambda r: hist.mean_rate(t_e, r))), sig_w * self._l_imu_ant_m
+        arw = math.sqrt(self._tuning.q_gyro_rad2_per_s)
+        w_e = np.array(centred_rate(lambda r: hist.mean_rate(t_e, r)))
+        return w_e, centred_rate_velocity_sigma_mps(arw, self._l_imu_ant_m)
 
     def _fuse_nonholonomic(self, t: float) -> None:
         """Zero lateral/vertical velocity of the reference point, at the current state.

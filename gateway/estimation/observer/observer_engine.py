@@ -58,11 +58,10 @@ from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
-    LEVER_RATE_HALF_WIDTH_S,
-    LEVER_RATE_NOISE_GAIN,
     along_body_x,
     antenna_velocity_along_body_x,
     centred_rate,
+    centred_rate_velocity_sigma_mps,
     heading_from_antenna_course,
     lever_arm_position_ned,
     lever_arm_velocity_ned,
@@ -1096,8 +1095,7 @@ class ObserverEngine:
         noise, m/s: 0.6 cm/s on a 2 m lever arm at the ADIS16334's ARW, more on a noisier
         unit, and the velocity chain of the accel-bias filter must know it (an IMU twice as
         noisy as its datasheet learnt its x bias 0.02 m/s^2 off without it)."""
-        sigma_w = self._gyro_arw / math.sqrt(2.0 * LEVER_RATE_HALF_WIDTH_S)
-        return LEVER_RATE_NOISE_GAIN * sigma_w * self._l_imu_ant_m
+        return centred_rate_velocity_sigma_mps(self._gyro_arw, self._l_imu_ant_m)
 
     def _mean_rate(self, t0_s: float, row: _Row) -> Float3:
         """Mean bias-corrected body rate over [t0_s, row time], from the history, rad/s."""
