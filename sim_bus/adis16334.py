@@ -2,8 +2,11 @@
 
 Model, per axis, in the sensor's own (IMU) axes, all vectorised over the sample grid:
 
-    y = C_imu^b (x_b + vibration_b) + b_turn_on + b_in_run(t) + white noise,
+    y = C_imu^b (mean(x_b) + vibration_b) + b_turn_on + b_in_run(t) + white noise,
 
+where mean(x_b) is the datasheet's average/decimation filter: each output sample is the mean
+of the 2^DEC internal samples (819.2 Hz) up to it, so a sample is the mean rate and specific
+force over its period, not their value at its instant (:func:`decimated`).
 then quantised to the register LSB, saturated at the 14-bit range and packed with the ND
 (new data) and EA (alarm) bits as the bridge forwards them (SPEC 1). The in-run bias is a
 first-order Gauss-Markov process whose Allan-deviation floor (0.6174 sigma at tau = 1.89 T)
@@ -183,6 +186,23 @@ def _latched(flags: npt.NDArray[np.uint16], reads: npt.NDArray[np.int64]) -> npt
     return out
 
 
+def decimated(x: Array, dec: int) -> Array:
+    """Output samples (n, 3) of the average/decimation filter from values ``x`` (n, 3) at the
+    output instants: the mean of the 2^dec internal samples at 819.2 Hz that end at each
+    instant, the truth between two instants taken as linear. That mean is
+    ((m + 1) x_k + (m - 1) x_{k-1}) / 2m with m = 2^dec (the first sample: its own value).
+
+    A point value taken for the period's mean turns the platform half a period early: on
+    ground rocking the body at 25 deg/s, 0.06 deg of tilt at 204.8 Hz and 0.12 at 102.4 Hz.
+    With point values the EKF's pitch error was 1.26 times its stated sigma RMS on
+    `steep-turns` seed 61 of `rough-prompt`, 0.99 with this filter.
+    """
+    m = 2**dec
+    out = x.copy()
+    out[1:] = ((m + 1) * x[1:] + (m - 1) * x[:-1]) / (2 * m)
+    return out
+
+
 def simulate(
     t: npt.ArrayLike, w_ib_b: npt.ArrayLike, f_ib_b_imu: npt.ArrayLike, config: Adis16334Config
 ) -> Adis16334Output:
@@ -214,8 +234,8 @@ def simulate(
         config.accel_bias_stability_mps2 / GM_ALLAN_FLOOR,
         config.accel_in_run_bias0_mps2,
     )
-    w_b = np.asarray(w_ib_b, dtype=float)
-    f_b = np.asarray(f_ib_b_imu, dtype=float)
+    w_b = decimated(np.asarray(w_ib_b, dtype=float), config.dec)
+    f_b = decimated(np.asarray(f_ib_b_imu, dtype=float), config.dec)
     vib = config.vibration
     if vib is not None:
         tv = (t - t[0]) * vib.frequency_hz

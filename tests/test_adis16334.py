@@ -124,7 +124,7 @@ def test_mounting_rotation_sensor_measures_in_imu_axes() -> None:
 
 def test_over_range_saturates_latches_diag_and_sets_ea_until_read() -> None:
     t, w, f = truth(3.0)
-    w[300] = [500 * DEG_TO_RAD, 0, 0]
+    w[300] = [1000 * DEG_TO_RAD, 0, 0]  # the decimation filter passes 5/8 of it at 300
     out = simulate(t, w, f, QUIET)
     assert counts_from_words(out.gyro_words)[300, 0] == 8191
     reads = out.aux.index
@@ -133,6 +133,25 @@ def test_over_range_saturates_latches_diag_and_sets_ea_until_read() -> None:
     nxt = reads[np.searchsorted(reads, 300)]
     assert not alarm[:300].any() and alarm[300 : nxt + 1].all() and not alarm[nxt + 1 :].any()
     assert out.aux.diag_stat.tolist().count(DiagStat.OVERRANGE) == 1
+
+
+@pytest.mark.parametrize("dec", [2, 3])
+def test_a_sample_is_the_mean_over_its_period_as_the_decimation_filter_makes_it(dec: int) -> None:
+    """A 2 Hz rocking rate: each sample is the mean of the 2^DEC internal 819.2 Hz samples up
+    to its instant (within an LSB), not the rate at that instant, which leads it by about
+    half a period (a strapdown integration takes a sample for its period's mean)."""
+    t, w, f = truth(2.0, dec=dec)
+    k = 2.0 * np.pi * 2.0
+    amp = 25.0 * DEG_TO_RAD
+    w[:, 0] = amp * np.sin(k * (t - t[0]))
+    out = simulate(t, w, f, replace(QUIET, dec=dec))
+    x = counts_from_words(out.gyro_words)[1:, 0] * GYRO_LSB_RPS
+    m = 2**dec
+    internal = t[1:, None] - t[0] - np.arange(m)[None, :] / 819.2
+    mean = amp * np.sin(k * internal).mean(axis=1)
+    chord = amp * (k * (t[1] - t[0])) ** 2 / 8.0  # the sine off the line between two samples
+    assert np.abs(x - mean).max() <= 0.5 * GYRO_LSB_RPS + chord  # and the rounding
+    assert np.abs(w[1:, 0] - mean).max() > 0.9 * amp * k * (m - 1) / (2 * 819.2)
 
 
 def test_aux_registers_and_dec() -> None:
