@@ -103,6 +103,7 @@ from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import WindowMotion
 from gateway.estimation.lever_arm import (
+    LEVER_RATE_HALF_WIDTH_S,
     along_body_x,
     centred_rate,
     centred_rate_velocity_sigma_mps,
@@ -139,10 +140,6 @@ EARTH_RATE_RPS = 7.292115e-5
 #: Below this GNSS speed the receiver's course is unreliable (held): direction unknown.
 COG_RELIABLE_SPEED_MPS = 0.1
 
-#: The non-holonomic constraint's reference-point lever-arm velocity takes the body rate
-#: averaged over this much of the past, s: 10 ms of lag where the outputs' low-pass has 50
-#: (one sample's gyro noise, 0.5 deg/s, cost the heading 2-5 % of its RMS).
-NHC_RATE_WINDOW_S = 0.02
 #: The non-holonomic constraint is due ``nhc_interval_s`` after the last to within this, s
 #: (a 10 Hz receiver's epochs arrive 0.1 s apart give or take the serial line's jitter).
 NHC_SLACK_S = 0.01
@@ -583,7 +580,7 @@ class EkfEngine:
                 measurements.append(self._fuse_fix_position(row, c_e, p_ant))
         vel = self._gnss_velocity(fix)
         if vel is not None:
-            w_e, sig_lever = self._lever_rate(t_e)
+            w_e, sig_lever = self._lever_rate(t_e, self._l_imu_ant_m)
             measurements.append(
                 fuse_velocity(
                     row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
@@ -621,13 +618,14 @@ class EkfEngine:
         t = self._t_s
         assert t is not None  # (the history has rows)
         if t - self._t_nhc_s >= self.cfg.nhc_interval_s - NHC_SLACK_S:
-            self._fuse_nonholonomic(t)  # at the state of now, however late the epoch
+            self._fuse_nonholonomic(t)  # 50 ms before now, however late the epoch
 
-    def _lever_rate(self, t_e: float) -> tuple[Array, float]:
-        """Body rate at ``t_e`` for the antenna lever-arm velocity, and that velocity's 1-sigma.
+    def _lever_rate(self, t_e: float, lever_m: float) -> tuple[Array, float]:
+        """Body rate at ``t_e`` for a lever-arm velocity, and that velocity's 1-sigma over a
+        lever arm of ``lever_m``.
 
         From the history's means about ``t_e`` (:func:`centred_rate`: no lag, no loss of a
-        rocking mast's rate; the epoch waits for the samples after it, :class:`HeldEpochs`);
+        rocking mast's rate; an epoch waits for the samples after it, :class:`HeldEpochs`);
         its gyro noise over the lever arm (:func:`centred_rate_velocity_sigma_mps`) is added
         to the velocity's sigma.
         """
@@ -635,33 +633,41 @@ class EkfEngine:
         hist = self._hist
         arw = math.sqrt(self._tuning.q_gyro_rad2_per_s)
         w_e = np.array(centred_rate(lambda r: hist.mean_rate(t_e, r)))
-        return w_e, centred_rate_velocity_sigma_mps(arw, self._l_imu_ant_m)
+        return w_e, centred_rate_velocity_sigma_mps(arw, lever_m)
 
     def _fuse_nonholonomic(self, t: float) -> None:
-        """Zero lateral/vertical velocity of the reference point, at the current state.
+        """Zero lateral/vertical velocity of the reference point, at the state of
+        :data:`LEVER_RATE_HALF_WIDTH_S` before ``t`` (now).
 
-        The reference point's lever-arm velocity w x l takes the mean rate of the last
-        ``NHC_RATE_WINDOW_S``, its gyro noise over the lever arm added to the constraint's
-        sigma: the rate low-passed for the outputs lags 50 ms, and on rough ground (pitch
-        rates of 8 deg/s RMS at 1-2 Hz, a 1.1 m lever arm) that lag put up to 5 cm/s into
-        the constraint, which took it for pitch (steep-turns seed 61 of rough-slope: 0.3 deg
-        off with 0.06 stated).
+        The reference point's lever-arm velocity w x l takes the rate centred on that instant
+        (:func:`centred_rate`, as the antenna's does), its gyro noise over the lever arm in
+        the constraint's sigma. A rate from the past lags: the outputs' low-pass (50 ms)
+        put up to 5 cm/s into the constraint on rough ground, which took it for pitch
+        (steep-turns seed 61 of rough-slope: 0.3 deg off with 0.06 stated), and the mean of
+        the last 20 ms, 12-15 ms behind, still read a rocking body's lateral lever-arm
+        velocity, in phase with the roll, as vertical: a mean pitch error (+/-2 deg of roll
+        at 2 Hz with the IMU 1 m up: +0.069 deg at 102.4 Hz, +0.052 at 204.8; centred,
+        +0.036 and +0.032).
         """
-        ins, tun, hist = self._ins, self._tuning, self._hist
-        assert ins is not None and self._p is not None and tun is not None and hist is not None
+        hist = self._hist
+        assert self._p is not None and hist is not None
         self._t_nhc_s = t
-        sigma_w = math.sqrt(tun.q_gyro_rad2_per_s / NHC_RATE_WINDOW_S)
+        t_c = t - LEVER_RATE_HALF_WIDTH_S
+        row = hist.at(t_c)
+        if row is None or hist.spacing(t_c) > MAX_IMU_STEP_S:
+            return  # the history does not reach back, or a gap: no state there
+        w_c, sigma_lever = self._lever_rate(t_c, self._l_imu_m)
         m = fuse_nonholonomic(
-            np.array(ins.v_ned_mps),
-            ins.c_bn,
-            hist.mean_rate(t, NHC_RATE_WINDOW_S),
+            row[ROW_V],
+            row[ROW_C].reshape(3, 3),
+            w_c,
             -self._l_imu_b,
-            math.hypot(self.cfg.nhc_sigma_mps, sigma_w * self._l_imu_m),
+            math.hypot(self.cfg.nhc_sigma_mps, sigma_lever),
             self._chassis_pitch_rad,
         )
         dx = np.zeros(N_STATES)
         if correct(self._p, dx, m, self.cfg.gate_sigma).accepted:
-            self._inject(dx, t)
+            self._inject(dx, t_c)
         else:
             self.counters.nonholonomic_rejected += 1
         self._update_motion_flags()
@@ -718,7 +724,7 @@ class EkfEngine:
         if fix.heading_rad is not None:
             target, sig_yaw = fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD
         elif vel is not None and math.hypot(*vel) >= self.cfg.align_min_speed_mps:
-            w_e = self._lever_rate(t_e)[0]
+            w_e = self._lever_rate(t_e, self._l_imu_ant_m)[0]
             target = heading_from_antenna_course(
                 vel, row[ROW_C], w_e, self._l_ant_b, self._forward_at(vel, row, w_e)
             )
@@ -998,7 +1004,7 @@ class EkfEngine:
         p_imu = self._antenna_ned(fix) - c_l
         vel = self._gnss_velocity(fix)
         v_ne = vel[0] if vel is not None else np.zeros(2)
-        w_e = self._lever_rate(t_e)[0]
+        w_e = self._lever_rate(t_e, self._l_imu_ant_m)[0]
         v_lever = c_e @ cross3(w_e, l_b)
         v_imu = np.array([v_ne[0], v_ne[1], 0.0]) - v_lever
         # NMEA has no vertical velocity: the reference point's, a wheeled vehicle's (along
