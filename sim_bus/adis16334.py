@@ -4,11 +4,11 @@ Model, per axis, in the sensor's own (IMU) axes, all vectorised over the sample 
 
     y = C_imu^b (mean(x_b) + vibration_b) + b_turn_on + b_in_run(t) + white noise,
 
-where mean(x_b) is the datasheet's average/decimation filter: each output sample is the mean
-of the 2^DEC internal samples (819.2 Hz) up to it, so a sample is the mean rate and specific
-force over its period, not their value at its instant (:func:`decimated`).
 then quantised to the register LSB, saturated at the 14-bit range and packed with the ND
-(new data) and EA (alarm) bits as the bridge forwards them (SPEC 1). The in-run bias is a
+(new data) and EA (alarm) bits as the bridge forwards them (SPEC 1). mean(x_b) is the
+datasheet's average/decimation filter: each output sample is the mean of the 2^DEC internal
+samples (819.2 Hz) up to it, so a sample is the mean rate and specific force over its
+period, not their value at its instant (:func:`decimated`). The in-run bias is a
 first-order Gauss-Markov process whose Allan-deviation floor (0.6174 sigma at tau = 1.89 T)
 equals the datasheet's in-run bias stability; the white noise is the datasheet's random walk.
 
