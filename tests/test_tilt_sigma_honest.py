@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from drivers.imu_can import sample_period_s
 from drivers.samples import GnssFix, ImuSample
 from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection, load_config
 from gateway.estimation.observer.observer_config import ObserverConfig
@@ -481,7 +482,7 @@ def test_rocking_in_roll_puts_no_mean_error_into_pitch_at_102_hz(engine: Engine)
     (+0.069 deg, RMS 0.080; +0.052 at 204.8 Hz). It now takes the rate centred on the
     state 50 ms back: +0.036, RMS 0.067 (the observer +0.034, 0.053). The pitch does not
     rock here, so its mean error is what the rocking rectifies."""
-    checked = rocking_drive_tilt(engine, 0.04, 8.0 / 819.2)
+    checked = rocking_drive_tilt(engine, 0.04, sample_period_s(3))
     assert len(checked) > 900
     pitch_mean = float(np.mean([p for _, _, p, _ in checked]))
     assert abs(pitch_mean) < 0.05, pitch_mean
