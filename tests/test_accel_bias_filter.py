@@ -142,6 +142,41 @@ def test_a_platform_turned_by_the_engine_is_not_read_as_bias() -> None:
     assert flt.sigma_mps2 > 0.09
 
 
+@pytest.mark.parametrize("told", [True, False], ids=["told", "untold"])
+def test_a_stop_s_gyro_bias_update_is_no_tilt_after_it(told: bool) -> None:
+    """20 s at rest, levelled every epoch, the zero-rate update moving the x gyro bias
+    estimate by 0.2 deg/s (a unit twice its datasheet's turn-on spread). The platform is
+    then level on the bias and the gyro bias known: told so (``level``), the filter drives
+    off with nothing to correct. Untold (as before ``level``), it carries the move as a
+    gyro bias error and predicts the tilt that error would build over the stop (0.7 m/s^2),
+    and before any turn takes 1 mg of y bias out of it."""
+    flt = AccelBiasFilter(TAU_S)
+    c9 = level_c9(0.3)
+    flt.start(c9, 0.1, (0.0, 0.0, 0.0, 0.0, 0.0), NOISE)
+    t = 0.0
+    for _ in range(50):
+        t += T_S
+        flt.epoch(t, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), c9, (0.0, 0.0, 0.0, 0.0, 0.0),
+                  SIGMA_V, learn=True)  # fmt: skip
+    flt.open(t, c9)
+    bg_x = 0.0
+    for _ in range(200):  # at rest: levelled each epoch, the gyro bias observed
+        t += T_S
+        bg_x += 0.2 * DEG_TO_RAD / 200
+        if told:
+            flt.level(t, c9, (0.0, 0.0, 0.0, bg_x, 0.0), 0.02 * DEG_TO_RAD, 0.01 * DEG_TO_RAD)
+    correction = np.zeros(2)
+    for _ in range(100):  # driving straight on: nothing wrong, e = 0
+        t += T_S
+        db = flt.epoch(t, (0.0, 0.0), (0.0, 0.0), (0.0, 0.0), c9, (0.0, 0.0, 0.0, bg_x, 0.0),
+                       SIGMA_V, learn=True)  # fmt: skip
+        correction += db
+    assert not flt.inconsistent()
+    assert flt.sigma_mps2 > 0.09  # nothing learnt before a turn
+    # told: no correction; untold: 1 mg of y bias out of the tilt it predicted
+    assert (np.max(np.abs(correction)) < 0.2 * MG_MPS2) == told, correction
+
+
 def test_in_the_engine_the_filter_learns_the_biases_better_than_eq_12() -> None:
     """steep-turns seed 1 (8-10 deg of side slope, tight headland turns), 6 minutes, after
     200 s: the observer with the filter against the paper's eq. (12). Measured: x/y accel

@@ -876,11 +876,22 @@ class ObserverEngine:
         # velocity is in another azimuth than the body-x speed that follows: 0.12 deg)
         self._prev_epoch = None
         prev = self._prev_rest_row
+        observed = False
         if prev is not None and row[_T] > prev[_T] and obs.learn:
+            observed = True
             d = row[_T] - prev[_T]
             w_res = ((row[_WI_X] - prev[_WI_X]) / d, (row[_WI_Y] - prev[_WI_Y]) / d)
             self._observe_gyro_bias_at_rest(w_res, d)
         self._prev_rest_row = row
+        if self._ba_filter is not None:
+            ba, bg = obs.ba_hat_mps2, obs.bg_hat_rps
+            self._ba_filter.level(
+                t_e,
+                obs.c_bp9,
+                (ba[0], ba[1], ba[2], bg[0], bg[1]),
+                level.sigma_tilt_rad,
+                self._sigma_bg_rps() if observed else None,
+            )
 
     def _noise_as_measured(self) -> None:
         """The IMU's white noise as measured at rest (:mod:`gateway.estimation.imu_noise`),
