@@ -32,12 +32,12 @@ e it applied over the interval); what the engine itself does to the platform is 
 turn with :meth:`rotate`, a heading alignment with :meth:`rotate_about_vertical`, a levelling
 at rest with :meth:`level` (which leaves x = -C_h db, and the x/y gyro biases observed by
 the stop's zero-rate update). What else moves the bias estimates (eq. 11, the z height loop)
-is seen as their change between epochs. The estimated x/y bias error is handed back for the observer to
-apply (an error-state filter: the state then returns to zero). Until the first turn x and
-C_h db are one quantity: the filter starts with them correlated as a levelling leaves them
-(x = -C_h db), so e teaches it nothing before the heading changes; the engine starts it only
-once the heading has held for the learning hold-off (in a turn the tilt of a bias error
-turns with the body, and the loop lags it).
+is seen as their change between epochs. The estimated x/y bias error is handed back for the
+observer to apply (an error-state filter: the state then returns to zero). Until the first
+turn x and C_h db are one quantity: the filter starts with them correlated as a levelling
+leaves them (x = -C_h db), so e teaches it nothing before the heading changes; the engine
+starts it only once the heading has held for the learning hold-off (in a turn the tilt of a
+bias error turns with the body, and the loop lags it).
 
 Until the first turn nothing in e tells an x bias from a pitch (eq. 8): a wheeled vehicle's
 track does. It drives along its own x axis, so the height its reference point gains is

@@ -884,13 +884,9 @@ class ObserverEngine:
             self._observe_gyro_bias_at_rest(w_res, d)
         self._prev_rest_row = row
         if self._ba_filter is not None:
-            ba, bg = obs.ba_hat_mps2, obs.bg_hat_rps
+            sigma_bg = self._sigma_bg_rps() if observed else None
             self._ba_filter.level(
-                t_e,
-                obs.c_bp9,
-                (ba[0], ba[1], ba[2], bg[0], bg[1]),
-                level.sigma_tilt_rad,
-                self._sigma_bg_rps() if observed else None,
+                t_e, obs.c_bp9, filter_biases(obs), level.sigma_tilt_rad, sigma_bg
             )
 
     def _noise_as_measured(self) -> None:
@@ -1308,8 +1304,7 @@ class ObserverEngine:
         and apply the x/y bias correction it returns."""
         obs, flt = self._observer, self._ba_filter
         assert obs is not None and flt is not None
-        ba, bg = obs.ba_hat_mps2, obs.bg_hat_rps
-        biases = (ba[0], ba[1], ba[2], bg[0], bg[1])
+        biases = filter_biases(obs)
         row, prow = rows
         # the epoch interval's mean rate: one sample's noise is 0.5-1 deg/s of ARW, which
         # beyond 2 deg/s once in 8 s kept the filter from starting on an IMU twice the
@@ -1985,3 +1980,9 @@ class ObserverEngine:
             + (math.hypot(*self._ba_tilt_ne) / g) ** 2
             + self._mounting_var
         )
+
+
+def filter_biases(obs: TereshkovObserver) -> tuple[float, float, float, float, float]:
+    """The bias estimates the accel-bias filter follows: b_a x, y, z and b_g x, y."""
+    ba, bg = obs.ba_hat_mps2, obs.bg_hat_rps
+    return (ba[0], ba[1], ba[2], bg[0], bg[1])
