@@ -20,6 +20,10 @@ from drivers.samples import GnssFix
 from drivers.units import GRAVITY_MPS2
 from gateway.estimation.gnss_error import fix_velocity_ne_mps
 
+#: A window levels with its samples up to this long ago, s: GNSS says "moving" one epoch
+#: and its latency after the vehicle pulls away, the IMU feels it at once.
+ALIGN_LAG_S = 0.5
+
 #: Tilt 1-sigma of a window levelled while moving with fewer than two GNSS velocities in it
 #: (1 Hz GNSS, a lost fix): 2 m/s^2, hard braking or pulling away of a farm vehicle, over g.
 UNKNOWN_MOTION_TILT_RAD = math.atan(2.0 / GRAVITY_MPS2)

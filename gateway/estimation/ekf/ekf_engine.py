@@ -101,7 +101,7 @@ from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_varian
 from gateway.estimation.gnss_track import DRIFT_WINDOW_S, GnssTrack
 from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
-from gateway.estimation.levelling import WindowMotion
+from gateway.estimation.levelling import ALIGN_LAG_S, WindowMotion
 from gateway.estimation.lever_arm import (
     LEVER_RATE_HALF_WIDTH_S,
     along_body_x,
@@ -130,9 +130,6 @@ ALIGN_TIMEOUT_S = 10.0
 #: to a stop (GNSS speed lags it) and the rocking after it are not tilt (a window from the
 #: stop on levelled 0.45 deg off, stated 0.03).
 ALIGN_SETTLE_S = 1.0
-#: A window levels with its samples up to this long ago, s: GNSS says "moving" one epoch
-#: and its latency after the vehicle pulls away, the IMU feels it at once.
-ALIGN_LAG_S = 0.5
 ALIGN_MARK_S = 0.05  # the window's running sums kept this often, s, for that
 #: Earth rate, rad/s: part of the gyro mean at rest (mechanisation drops it, see
 #: gateway.estimation.ekf.error_state).
