@@ -40,7 +40,8 @@ n is stamped ``offset + n dt - bridge_latency_s``. What is decided when, and why
   arrivals) agree on a lateness over half a wrap, 256 m samples (m from that lateness) are added
   to the index and to ``lost``, the anchor restarts on the earliest of those arrivals, and a
   warning is logged. The samples of those ``wrap_check_s`` (at most wrap_check_s / dt + 1 of
-  them, more if the host stalls meanwhile) were already emitted 256 m dt early; the times jump
+  them, more if the host stalls meanwhile) were already emitted 256 m dt early, each marked
+  ``timing_unknown`` (from the late SEQ gap until it is decided, either way); the times jump
   forward there, still increasing.
 - The same steady lateness with no SEQ gap is a host clock step forward (or, indistinguishably,
   an outage of exactly 256 m samples, which is then under-counted): the anchor restarts, no loss
@@ -263,16 +264,16 @@ def _half_unpacker(frame: ImuFrame) -> tuple[_Unpacker, int]:
     return decoder.compile(list(outputs.values())), (1 << reserved.length) - 1
 
 
-_SampleMaker = Callable[[float, float, Float3, Float3, int, bool, bool, bool], ImuSample]
+_SampleMaker = Callable[[float, float, Float3, Float3, int, bool, bool, bool, bool], ImuSample]
 
 
 def _sample_maker() -> _SampleMaker:
-    """``ImuSample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck)`` at half the cost: a
-    frozen dataclass's ``__init__`` sets each field through ``object.__setattr__`` (~0.9 us a
-    sample, as much as decoding both frames); this sets the same slots directly, so the sample
-    is the same. If ImuSample ever needs more than its slots set (other fields, a
-    ``__post_init__``, no slots), the class itself is called."""
-    names = ("t", "dt", "w_ib_b", "f_ib_b", "seq", "alarm", "saturated", "stuck")
+    """``ImuSample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck, timing_unknown)`` at
+    half the cost: a frozen dataclass's ``__init__`` sets each field through
+    ``object.__setattr__`` (~0.9 us a sample, as much as decoding both frames); this sets the
+    same slots directly, so the sample is the same. If ImuSample ever needs more than its
+    slots set (other fields, a ``__post_init__``, no slots), the class itself is called."""
+    names = ("t", "dt", "w_ib_b", "f_ib_b", "seq", "alarm", "saturated", "stuck", "timing_unknown")
     fields = dataclasses.fields(ImuSample)
     slots = [vars(ImuSample).get(n) for n in names]
     if (
@@ -287,7 +288,7 @@ def _sample_maker() -> _SampleMaker:
 
         return construct
     new, cls = object.__new__, ImuSample
-    set_t, set_dt, set_w, set_f, set_seq, set_alarm, set_saturated, set_stuck = (
+    set_t, set_dt, set_w, set_f, set_seq, set_alarm, set_saturated, set_stuck, set_unknown = (
         slot.__set__ for slot in slots if isinstance(slot, types.MemberDescriptorType)
     )
 
@@ -300,6 +301,7 @@ def _sample_maker() -> _SampleMaker:
         alarm: bool,
         saturated: bool,
         stuck: bool,
+        timing_unknown: bool,
     ) -> ImuSample:
         sample = new(cls)
         set_t(sample, t)
@@ -310,6 +312,7 @@ def _sample_maker() -> _SampleMaker:
         set_alarm(sample, alarm)
         set_saturated(sample, saturated)
         set_stuck(sample, stuck)
+        set_unknown(sample, timing_unknown)
         return sample
 
     return make
@@ -546,7 +549,7 @@ class ImuDecoder:
             w_ib_b, f_ib_b = self._mount(w_ib_b), self._mount(f_ib_b)
         dt = self._dt
         t = self._offset + n * dt - self._latency
-        return _new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck)
+        return _new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck, self._gap_late)
 
     def _on_stuck(self, seq: int, a: float) -> None:
         checks = self._checks

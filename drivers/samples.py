@@ -53,6 +53,10 @@ class ImuSample:
     alarm: bool = False  # EA bit of any output word: some DIAG_STAT flag is set
     saturated: bool = False  # some axis at the end of its 14-bit register range
     stuck: bool = False  # some axis's word unchanged for many samples (drivers.axis_checks)
+    # after a SEQ gap with its frames over half a SEQ wrap late: an outage longer than a wrap
+    # (t then a whole number of wraps early) or a host stall, not yet told apart
+    # (drivers.imu_can): the sample time is not known
+    timing_unknown: bool = False
 
 
 @dataclass(frozen=True, slots=True)

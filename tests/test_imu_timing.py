@@ -171,6 +171,8 @@ def test_a_2_s_outage_counts_410_lost_and_times_right_once_decided() -> None:
     assert early[0] == 1000 and early[-1] - early[0] + 1 == len(early) <= DECISION_SAMPLES
     np.testing.assert_allclose(err[early], -WRAP_S, atol=1e-6)
     assert np.abs(err[early[-1] + 1 :]).max() < 1e-6
+    # each sample stamped early says its time is not known, and no other does
+    assert np.flatnonzero([x.timing_unknown for x in s]).tolist() == early.tolist()
 
 
 def test_a_loss_of_5_samples_is_counted_exactly_without_a_time_shift() -> None:

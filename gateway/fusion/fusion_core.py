@@ -125,6 +125,7 @@ class FusionStats:
     engine_restarts: int = 0  # after a gap of RESTART_GAP_S in the IMU stream, or unusable samples
     imu_saturated: int = 0  # samples withheld from the engine: an axis at its range's end
     imu_stuck: int = 0  # samples withheld from the engine: an axis's word stuck
+    imu_timing_unknown: int = 0  # ... and samples whose time the driver does not know yet
 
 
 class ImuLossCount(Protocol):
@@ -305,7 +306,7 @@ class FusionCore:
         """Propagate with one sample, then send whatever is due at its time."""
         self.stats.imu_samples += 1
         t = sample.t
-        if sample.saturated or sample.stuck:
+        if sample.saturated or sample.stuck or sample.timing_unknown:
             return self._on_unusable(sample)
         if self._warm_start is not None:
             self._wait_for_temperature(t)
@@ -355,18 +356,29 @@ class FusionCore:
         )
 
     def _on_unusable(self, sample: ImuSample) -> Iterator[can.Message]:
-        """A saturated or stuck sample: not fed to the engine; NAVGW_STATUS says FAULT."""
+        """A saturated or stuck sample, or one whose time the driver does not know yet: not
+        fed to the engine; NAVGW_STATUS says FAULT.
+
+        Why the time: after an outage of the IMU's frames longer than a SEQ wrap (1.25 s at
+        204.8 Hz) the driver takes a quarter second of arrivals to tell it from a host stall,
+        and until then stamps the samples a wrap early. Fed to the engine, they turned the
+        platform by the motion after the outage as if none had passed: pitch 1.9 deg off
+        with 0.59 stated (`short` seed 421, a 1.3 s outage at 33 s), both engines."""
         if sample.saturated:
             self.stats.imu_saturated += 1
-        else:
+            what = "saturated (an axis at the end of its range)"
+        elif sample.stuck:
             self.stats.imu_stuck += 1
+            what = "stuck (an axis's output unchanged sample after sample)"
+        else:
+            self.stats.imu_timing_unknown += 1
+            what = "sample time unknown (frames late after a SEQ gap: an outage or a stall)"
         if not self._unusable and sample.t - self._last_unusable_log >= 10.0:
             log.warning(
                 "IMU %s at t=%.3f: attitude unknown, FAULT until the engine has re-aligned",
-                "saturated (an axis at the end of its range)" if sample.saturated
-                else "stuck (an axis's output unchanged sample after sample)",
+                what,
                 sample.t,
-            )  # fmt: skip
+            )
             self._last_unusable_log = sample.t
         self._unusable = True
         return self._counted(chain(self._timers(sample.t), self._fault(sample.t)))
