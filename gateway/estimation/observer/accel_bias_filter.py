@@ -192,19 +192,15 @@ class AccelBiasFilter:
         platform levelled on it (x = -C_h db), the estimates b_a x, y, z and b_g x, y as
         they are."""
         self.noise = n = noise
-        c_h = _c_h(c9)
         sb2 = sigma_ba_mps2**2
         p = np.zeros((N_STATES, N_STATES))
-        p[_X, _X] = sb2 * c_h @ c_h.T + (self.g_mps2 * n.tilt_sigma0_rad) ** 2 * np.eye(2)
-        p[_X, _DB] = -sb2 * c_h
-        p[_DB, _X] = -sb2 * c_h.T
         p[_DB, _DB] = sb2 * np.eye(2)
         p[_DG, _DG] = n.gyro_bias_sigma0_rps**2 * np.eye(2)
         p[_DBZ, _DBZ] = sb2
         p[_DPSI, _DPSI] = n.heading_sigma_rad**2
         p[_DTH, _DTH] = n.chassis_pitch_sigma_rad**2
-        self._set_p(p)
         self._s[:] = 0.0
+        self._levelled(p, c9, n.tilt_sigma0_rad)
         self._chained = False
         self._track = None
         self._t_s = None
@@ -378,13 +374,18 @@ class AccelBiasFilter:
             p[_DG, :] = 0.0
             p[:, _DG] = 0.0
             p[_DG, _DG] = sigma_bg_rps**2 * np.eye(2)
-        l_x = -_c_h(c9)  # x = L db + the levelling's noise
+        self._levelled(p, c9, sigma_tilt_rad)
+        self._t_s = t_s
+
+    def _levelled(self, p: Array, c9: Mat9, sigma_tilt_rad: float) -> None:
+        """State and P <- ``p`` with the platform levelled on the biases: the tilt error is
+        the bias error's, x = -C_h db, plus the levelling's own ``sigma_tilt_rad``."""
+        l_x = -_c_h(c9)
         self._s[_X] = l_x @ self._s[_DB]
         p[_X, :] = l_x @ p[_DB, :]
         p[:, _X] = p[_X, :].T
         p[_X, _X] = l_x @ p[_DB, _DB] @ l_x.T + (self.g_mps2 * sigma_tilt_rad) ** 2 * np.eye(2)
         self._set_p(p)
-        self._t_s = t_s
 
     def _along_track(
         self, t_s: float, track: TrackEpoch | None
