@@ -16,11 +16,25 @@ the COG noise of low speed straight into the heading; after alignment or a long 
 fast. K never exceeds T / ``tau_heading_s`` (the rate is applied one epoch late).
 
 The z-gyro bias follows seed 001: the heading drift the gyro would have had without
-correction over an interval T, (r1 - r0 + integral of w_pz) / T, is an observation of the
-residual bias (about the vertical; divided by C[2,2] for the body z axis) and feeds a scalar
-Kalman filter with F = 1, H = 1, small process noise. At rest the mean bias-corrected z rate
-over a window is a direct observation of the residual bias (zero-rate update,
-:meth:`HeadingChannel.observe_zero_rate`), with variance ARW^2 / T.
+correction over an interval T is an observation of the residual bias (about the vertical;
+divided by C[2,2] for the body z axis) and feeds a scalar Kalman filter with F = 1, H = 1
+and the process noise of the datasheet's in-run wander (a Gauss-Markov process of sigma
+stability / 0.6174 and time constant tau, driven by white noise of PSD 2 sigma^2 / tau, as
+the EKF has it). The drift is the slope of a weighted least-squares line through the
+uncorrected residuals u = r + integral of w_pz of every epoch of the interval. Its variance
+is the fit's for the reference's noise (white at the epochs for a course from Doppler
+velocity; for HDT and an AB line, whose errors last longer than an epoch, that of the two
+ends) plus the gyro's angular random walk in the heading, 6 ARW^2 / (5 T) for a line fit to
+a random walk. An interval of course lasts until the random walk, not the course's noise,
+is the larger part (about 11 s at 3 m/s, 6 s at 6 m/s; at least ``gyro_z_window_s``).
+Before, the drift was the difference of the interval's two ends over 5 s, and the filter
+took the intervals as independent where they shared their ends: it stated three times the
+error it had on a steady course, and with its hand-set random walk (a third of the
+datasheet's) it trailed the wandering bias in a run, 2-3 times as far off as the EKF's
+(0.020 against 0.008 deg/s RMS on `outages` seed 510), its heading 1.6 deg off after a
+60 s outage. At rest the mean bias-corrected z rate over a window is a direct observation
+of the residual bias (zero-rate update, :meth:`HeadingChannel.observe_zero_rate`), with
+variance ARW^2 / T.
 """
 
 from __future__ import annotations
@@ -30,6 +44,7 @@ from dataclasses import dataclass
 from enum import Enum
 
 from drivers.units import DEG_TO_RAD, SQRT_SECONDS_PER_HOUR, wrap_pi
+from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.observer.observer_config import ObserverConfig
 
 #: Course-vs-heading difference above which the vehicle is reversing, below which forward.
@@ -44,6 +59,12 @@ class HeadingSource(Enum):
     COG = "cog"
     COG_REVERSED = "cog_reversed"
     AB_LINE = "ab_line"
+
+    @property
+    def white(self) -> bool:
+        """Whether its error is white at the epochs: a course from Doppler velocity; a dual
+        antenna's multipath and a driver's hold of an AB line last longer."""
+        return self in (HeadingSource.COG, HeadingSource.COG_REVERSED)
 
 
 @dataclass(frozen=True, slots=True)
@@ -89,13 +110,39 @@ class GyroZBiasKf:
 
 @dataclass
 class _BiasWindow:
-    """Start of the current heading-residual interval for one bias observation."""
+    """The heading-residual interval of one bias observation: weighted sums of its epochs'
+    uncorrected residuals u (rad) against the time since ``t0_s``, for a least-squares line
+    (weights 1 / sigma^2 of each reference)."""
 
-    t_s: float
-    r_rad: float
-    hc_rad: float  # cumulative applied heading correction at t_s
-    sigma_rad: float
+    t0_s: float
+    u0_rad: float  # the first epoch's u, subtracted to keep the sums small
+    sigma0_rad: float
     source: HeadingSource
+    sw: float = 0.0
+    swt: float = 0.0
+    swu: float = 0.0
+    swtt: float = 0.0
+    swtu: float = 0.0
+
+    def add(self, t_s: float, u_rad: float, sigma_rad: float) -> None:
+        """One epoch's uncorrected residual and its reference's 1-sigma."""
+        w, t, u = 1.0 / sigma_rad**2, t_s - self.t0_s, u_rad - self.u0_rad
+        self.sw += w
+        self.swt += w * t
+        self.swu += w * u
+        self.swtt += w * t * t
+        self.swtu += w * t * u
+
+    def drift(self, t_s: float, u_rad: float, sigma_rad: float) -> tuple[float, float]:
+        """Drift rate (rad/s) over the interval up to this epoch and its variance from the
+        references' noise: the line's slope, its variance the fit's for white noise, else
+        that of the two ends."""
+        interval_s = t_s - self.t0_s
+        det = self.sw * self.swtt - self.swt**2
+        if not self.source.white or det <= 0.0:
+            sigma = max(self.sigma0_rad, sigma_rad)
+            return (u_rad - self.u0_rad) / interval_s, 2.0 * (sigma / interval_s) ** 2
+        return (self.sw * self.swtu - self.swt * self.swu) / det, self.sw / det
 
 
 class HeadingChannel:
@@ -103,10 +150,12 @@ class HeadingChannel:
 
     def __init__(self, cfg: ObserverConfig) -> None:
         self.cfg = cfg
+        wander_rps = cfg.gyro_bias_stability_dps * DEG_TO_RAD / GM_ALLAN_FLOOR
         self.kf = GyroZBiasKf(
             cfg.gyro_z_bias_sigma0_dps * DEG_TO_RAD,
-            cfg.gyro_z_bias_walk_dps_per_sqrt_s * DEG_TO_RAD,
+            wander_rps * math.sqrt(2.0 / cfg.bias_correlation_time_s),
         )
+        self._arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self.reversing = False
         self._t_kf_s: float | None = None
         self._window: _BiasWindow | None = None
@@ -242,8 +291,7 @@ class HeadingChannel:
 
     def _predict_heading_variance(self, gap_s: float) -> None:
         """Heading error variance grows by ARW^2 gap + (sigma_bz gap)^2 without a reference."""
-        arw = self.cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
-        self._p_psi_rad2 += arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
+        self._p_psi_rad2 += self._arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
 
     def bridged(self, sigma_rad: float, restart: bool) -> None:
         """Lost IMU samples were bridged, turning the heading by an error of ``sigma_rad``
@@ -262,29 +310,35 @@ class HeadingChannel:
     def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> None:
         """Zero-rate update at rest: the mean bias-corrected body z rate over ``window_s``
         is the residual z bias, variance ARW^2 / window (engine vibration averages out)."""
-        arw = self.cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
-        self.kf.update(mean_w_z_rps, arw**2 / window_s)
+        self.kf.update(mean_w_z_rps, self._arw**2 / window_s)
         self._t_kf_s = t_s
 
     def _observe_bias(
         self, t_s: float, r_rad: float, hc_rad: float, ref: HeadingReference, c22: float
     ) -> None:
-        """Seed 001: residual bias = uncorrected heading drift over the interval / T."""
+        """Seed 001: residual bias = the uncorrected heading's drift over the interval (the
+        slope of its epochs, module docstring)."""
+        u = r_rad + hc_rad
         w = self._window
         if w is None or w.source is not ref.source:
-            self._window = _BiasWindow(t_s, r_rad, hc_rad, ref.sigma_rad, ref.source)
+            self._window = _BiasWindow(t_s, u, ref.sigma_rad, ref.source)
+            self._window.add(t_s, u, ref.sigma_rad)
             return
-        interval_s = t_s - w.t_s
+        w.add(t_s, u, ref.sigma_rad)
+        interval_s = t_s - w.t0_s
         if interval_s < self.cfg.gyro_z_window_s:
             return
-        drift_rps = (r_rad - w.r_rad + hc_rad - w.hc_rad) / interval_s
-        sigma_rad = max(w.sigma_rad, ref.sigma_rad)
-        r_rps2 = 2.0 * (sigma_rad / interval_s) ** 2 / c22**2
+        drift_rps, r_ref = w.drift(t_s, u, ref.sigma_rad)
+        r_arw = 1.2 * self._arw**2 / interval_s
+        if ref.source.white and r_ref > r_arw:
+            return  # the course's noise still the larger part: a longer line averages it
+        r_rps2 = (r_ref + r_arw) / c22**2
         self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
         self.kf.update(drift_rps / c22, r_rps2)
         self._t_kf_s = t_s
-        self._window = _BiasWindow(t_s, r_rad, hc_rad, ref.sigma_rad, ref.source)
+        self._window = _BiasWindow(t_s, u, ref.sigma_rad, ref.source)
+        self._window.add(t_s, u, ref.sigma_rad)
 
     @property
     def bg_z_rps(self) -> float:

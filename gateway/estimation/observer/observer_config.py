@@ -103,7 +103,6 @@ class ObserverConfig:
     ab_line_sigma_deg: float = 0.5  # how well the driver/autosteer holds the line bearing
     gyro_z_window_s: float = 5.0  # heading residual interval of one bias observation
     gyro_z_bias_sigma0_dps: float = 0.3  # initial z-gyro bias 1-sigma (KF P0)
-    gyro_z_bias_walk_dps_per_sqrt_s: float = 5e-4  # bias random walk (KF Q)
 
     # --- reference-point propagation ---
     # position channel (position_channel.py): each fix weighed by its sigma (GST, else the
