@@ -33,6 +33,7 @@ from dataclasses import dataclass
 
 from drivers.samples import FixQuality, GnssFix
 from drivers.units import wrap_pi
+from gateway.estimation.line_fit import LineSums
 from gateway.estimation.solution import Mode, Solution
 
 #: Ground cells kept (4 m cells: 80 km of single track); later cells are not started.
@@ -125,12 +126,7 @@ class _LineFit:
     """Weighted least squares of e = a + b r by running sums (weights: distance), and the
     sums that give the slope's variance from each segment's own error sigma."""
 
-    n: int = 0
-    w: float = 0.0
-    wr: float = 0.0
-    wrr: float = 0.0
-    we: float = 0.0
-    wer: float = 0.0
+    sums: LineSums = dataclasses.field(default_factory=LineSums)
     wee: float = 0.0
     v: float = 0.0  # sum (w sigma)^2
     vr: float = 0.0  # ... times r
@@ -138,12 +134,7 @@ class _LineFit:
 
     def add(self, weight: float, e: float, r: float, sigma: float) -> None:
         """One segment, its error no less than ``sigma``."""
-        self.n += 1
-        self.w += weight
-        self.wr += weight * r
-        self.wrr += weight * r * r
-        self.we += weight * e
-        self.wer += weight * e * r
+        self.sums.add(weight, r, e)
         self.wee += weight * e * e
         v = (weight * sigma) ** 2
         self.v += v
@@ -157,17 +148,17 @@ class _LineFit:
         cannot see: five segments of one swath, roll 3.6-4.0 deg and the engine's pitch
         error settling 0.13 deg, fitted a coupling of 0.33 +/- 0.08). None with fewer than
         three segments or no spread of roll."""
-        det = self.w * self.wrr - self.wr * self.wr
-        if self.n < 3 or det <= 1e-12 * self.w * self.w:
+        s = self.sums
+        det = s.det
+        if s.n < 3 or det <= 1e-12 * s.w * s.w:
             return None
-        b = (self.w * self.wer - self.wr * self.we) / det
-        a = (self.we - b * self.wr) / self.w
-        s2 = max(self.wee - a * self.we - b * self.wer, 0.0) / (self.n - 2)
+        a, b = s.line()
+        s2 = max(self.wee - a * s.wy - b * s.wxy, 0.0) / (s.n - 2)
         # b = sum c_i e_i, c_i = w_i (r_i - r_mean) w / det: its variance from the segments'
-        r_mean = self.wr / self.w
+        r_mean = s.wx / s.w
         own = max(self.vrr - 2.0 * r_mean * self.vr + r_mean * r_mean * self.v, 0.0)
-        sigma_b = math.sqrt(max(s2 * self.w / det, own * (self.w / det) ** 2))
-        return RollCoupling(b, sigma_b, math.sqrt(self.wrr / self.w), self.n)
+        sigma_b = math.sqrt(max(s2 * s.w / det, own * (s.w / det) ** 2))
+        return RollCoupling(b, sigma_b, math.sqrt(s.wxx / s.w), s.n)
 
 
 @dataclass(slots=True)

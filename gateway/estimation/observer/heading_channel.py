@@ -40,11 +40,12 @@ variance ARW^2 / T.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from enum import Enum
 
 from drivers.units import DEG_TO_RAD, SQRT_SECONDS_PER_HOUR, wrap_pi
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
+from gateway.estimation.line_fit import LineSums
 from gateway.estimation.observer.observer_config import ObserverConfig
 
 #: Course-vs-heading difference above which the vehicle is reversing, below which forward.
@@ -110,39 +111,29 @@ class GyroZBiasKf:
 
 @dataclass
 class _BiasWindow:
-    """The heading-residual interval of one bias observation: weighted sums of its epochs'
-    uncorrected residuals u (rad) against the time since ``t0_s``, for a least-squares line
-    (weights 1 / sigma^2 of each reference)."""
+    """The heading-residual interval of one bias observation: a least-squares line through
+    its epochs' uncorrected residuals u (rad) against the time since ``t0_s``, weighted by
+    1 / sigma^2 of each reference."""
 
     t0_s: float
     u0_rad: float  # the first epoch's u, subtracted to keep the sums small
     sigma0_rad: float
     source: HeadingSource
-    sw: float = 0.0
-    swt: float = 0.0
-    swu: float = 0.0
-    swtt: float = 0.0
-    swtu: float = 0.0
+    sums: LineSums = field(default_factory=LineSums)
 
     def add(self, t_s: float, u_rad: float, sigma_rad: float) -> None:
         """One epoch's uncorrected residual and its reference's 1-sigma."""
-        w, t, u = 1.0 / sigma_rad**2, t_s - self.t0_s, u_rad - self.u0_rad
-        self.sw += w
-        self.swt += w * t
-        self.swu += w * u
-        self.swtt += w * t * t
-        self.swtu += w * t * u
+        self.sums.add(1.0 / sigma_rad**2, t_s - self.t0_s, u_rad - self.u0_rad)
 
     def drift(self, t_s: float, u_rad: float, sigma_rad: float) -> tuple[float, float]:
         """Drift rate (rad/s) over the interval up to this epoch and its variance from the
         references' noise: the line's slope, its variance the fit's for white noise, else
         that of the two ends."""
         interval_s = t_s - self.t0_s
-        det = self.sw * self.swtt - self.swt**2
-        if not self.source.white or det <= 0.0:
+        if not self.source.white or self.sums.det <= 0.0:
             sigma = max(self.sigma0_rad, sigma_rad)
             return (u_rad - self.u0_rad) / interval_s, 2.0 * (sigma / interval_s) ** 2
-        return (self.sw * self.swtu - self.swt * self.swu) / det, self.sw / det
+        return self.sums.line()[1], self.sums.w / self.sums.det
 
 
 class HeadingChannel:
