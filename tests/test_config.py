@@ -12,6 +12,7 @@ from gateway.cli.main import main
 from gateway.config.config_schema import ConfigError, tomllib
 from gateway.config.gateway_config import (
     ENGINE_SECTIONS,
+    RETIRED_KEYS,
     Engine,
     GatewayConfig,
     config_from_table,
@@ -130,3 +131,18 @@ def test_zero_vibration_and_any_bearing_are_accepted(tmp_path: Path) -> None:
     path.write_text("[ekf]\nvibration_gyro_dps = 0.0\n[observer]\nab_line_bearing_deg = -45.0\n")
     config = load_config(path)
     assert config.ekf.vibration_gyro_dps == 0.0 and config.observer.ab_line_bearing_deg == -45.0
+
+
+def test_a_retired_key_is_ignored_with_a_warning_and_the_rest_still_read(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """`navgw config --example` writes every key, so a config of an earlier release may set
+    one that is gone: an upgrade must not stop the service on it."""
+    (section, retired), *_ = ((s, k) for s, keys in RETIRED_KEYS.items() for k in keys)
+    path = tmp_path / "old.toml"
+    path.write_text(f"[{section}]\n{retired} = 5e-4\ntau_heading_s = 3.0\n")
+    with caplog.at_level("WARNING", logger="gateway.config.gateway_config"):
+        config = load_config(path)
+    assert getattr(config, section).tau_heading_s == 3.0
+    assert f"{path}: {section}.{retired} is ignored" in caplog.text
+    assert main(["config", "--check", str(path)]) == 0

@@ -9,6 +9,7 @@ prints them with their comments. Lever arms and GNSS timing are given once, in
 from __future__ import annotations
 
 import dataclasses
+import logging
 from collections.abc import Iterable
 from dataclasses import dataclass, field
 from enum import Enum
@@ -406,8 +407,35 @@ class GatewayConfig:
         return dataclasses.replace(self.observer, **self.shared(ObserverConfig))
 
 
+log = logging.getLogger(__name__)
+
+#: Keys of earlier releases, each with what took its place: ignored with a warning, so that
+#: a config written by an older ``navgw config --example`` (every key) still starts the
+#: service after an upgrade.
+RETIRED_KEYS: dict[str, dict[str, str]] = {
+    "observer": {
+        "gyro_z_bias_walk_dps_per_sqrt_s": "the z-gyro bias's random walk is the in-run wander "
+        "of gyro_bias_stability_dps and bias_correlation_time_s (since 2026-12-04)",
+    },
+}
+
+
+def _without_retired(table: dict[str, Any], where: str) -> dict[str, Any]:
+    """``table`` less the :data:`RETIRED_KEYS` it sets, each logged as a warning."""
+    out = dict(table)
+    for section, retired in RETIRED_KEYS.items():
+        given = out.get(section)
+        if isinstance(given, dict) and (old := sorted(set(given) & set(retired))):
+            out[section] = {k: v for k, v in given.items() if k not in retired}
+            for key in old:
+                log.warning("%s: %s.%s is ignored: %s", where, section, key, retired[key])
+    return out
+
+
 def config_from_table(table: dict[str, Any], where: str = "config") -> GatewayConfig:
-    """Validate a parsed TOML document; unknown tables and keys are errors that name them."""
+    """Validate a parsed TOML document; unknown tables and keys are errors that name them
+    (but :data:`RETIRED_KEYS`, ignored with a warning)."""
+    table = _without_retired(table, where)
     unknown = sorted(set(table) - set(SECTIONS) - set(ENGINE_SECTIONS))
     if unknown:
         raise ConfigError(
