@@ -37,6 +37,8 @@ from gateway.isobus.device_info import (
 from gateway.isobus.j1939 import DEFAULT_MANUFACTURER_CODE, DEFAULT_SOURCE_ADDRESS, Pgn
 from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ, MAX_RATE_HZ
 
+log = logging.getLogger(__name__)
+
 Vec3 = tuple[float, float, float]
 
 
@@ -406,8 +408,6 @@ class GatewayConfig:
             return dataclasses.replace(self.ekf, **self.shared(EkfConfig))
         return dataclasses.replace(self.observer, **self.shared(ObserverConfig))
 
-
-log = logging.getLogger(__name__)
 
 #: Keys of earlier releases, each with what took its place: ignored with a warning, so that
 #: a config written by an older ``navgw config --example`` (every key) still starts the

@@ -121,6 +121,9 @@ class _BiasWindow:
     source: HeadingSource
     sums: LineSums = field(default_factory=LineSums)
 
+    def __post_init__(self) -> None:
+        self.add(self.t0_s, self.u0_rad, self.sigma0_rad)  # the first epoch is on the line
+
     def add(self, t_s: float, u_rad: float, sigma_rad: float) -> None:
         """One epoch's uncorrected residual and its reference's 1-sigma."""
         self.sums.add(1.0 / sigma_rad**2, t_s - self.t0_s, u_rad - self.u0_rad)
@@ -314,7 +317,6 @@ class HeadingChannel:
         w = self._window
         if w is None or w.source is not ref.source:
             self._window = _BiasWindow(t_s, u, ref.sigma_rad, ref.source)
-            self._window.add(t_s, u, ref.sigma_rad)
             return
         w.add(t_s, u, ref.sigma_rad)
         interval_s = t_s - w.t0_s
@@ -329,7 +331,6 @@ class HeadingChannel:
         self.kf.update(drift_rps / c22, r_rps2)
         self._t_kf_s = t_s
         self._window = _BiasWindow(t_s, u, ref.sigma_rad, ref.source)
-        self._window.add(t_s, u, ref.sigma_rad)
 
     @property
     def bg_z_rps(self) -> float:
