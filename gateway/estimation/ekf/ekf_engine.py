@@ -81,6 +81,7 @@ from gateway.estimation.ekf.error_state import (
     fuse_nonholonomic,
     fuse_position,
     fuse_velocity,
+    fuse_zero_rate,
     predict,
     process_noise_psd,
     set_symmetrised,
@@ -140,6 +141,10 @@ COG_RELIABLE_SPEED_MPS = 0.1
 #: The non-holonomic constraint is due ``nhc_interval_s`` after the last to within this, s
 #: (a 10 Hz receiver's epochs arrive 0.1 s apart give or take the serial line's jitter).
 NHC_SLACK_S = 0.01
+#: A zero-rate update's span is fused this long (s) after it ends, the mean rate since its
+#: start checked (:meth:`EkfEngine._zero_rate`): within the history (``history_s``), and
+#: long enough for the check to see a turn of 0.15 deg/s.
+ZERO_RATE_CHECK_S = 2.0
 #: The stated roll/pitch 1-sigma is at least the filter's own latest horizontal tilt
 #: correction, decaying over this long, s (:meth:`EkfEngine._inject`).
 TILT_STEP_TAU_S = 1.0
@@ -153,6 +158,7 @@ class EkfCounters:
     velocity_rejected: int = 0
     heading_rejected: int = 0
     nonholonomic_rejected: int = 0
+    zero_rate_rejected: int = 0  # at rest, a mean z rate beyond the gate: the vehicle turned
     late_epochs: int = 0  # epoch older than the INS history: dropped
     resets: int = 0  # position/velocity re-initialised from GNSS
     bias_changes: int = 0  # x/y biases re-opened: a change beyond their in-run model
@@ -243,6 +249,8 @@ class EkfEngine:
         self._seed_var_g = np.zeros(3)
         self._rest_mean_g_rps: list[float] = []  # mean rate of the last window at rest
         self._t_rest_epoch_s: float | None = None  # last epoch at rest before alignment
+        # epochs at rest since the last that was not, not yet zero-rate updated from
+        self._rest_epochs_s: deque[float] = deque()
         self._tilt_step: tuple[float, float] = (0.0, 0.0)  # latest tilt correction rad, at s
 
     # ======================================================================== prediction
@@ -587,6 +595,7 @@ class EkfEngine:
             measurements.append(
                 fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD)
             )
+        measurements += self._zero_rate(fix, t_e)
         dx = np.zeros(N_STATES)
         accepted = False
         for m in measurements:
@@ -606,6 +615,8 @@ class EkfEngine:
             elif not ok and m.name == "velocity":
                 self.counters.velocity_rejected += 1
                 self._t_velocity_rejected_s = t_e
+            elif not ok and m.name == "zero rate":
+                self.counters.zero_rate_rejected += 1
             elif not ok:
                 self.counters.heading_rejected += 1
         if accepted:
@@ -616,6 +627,43 @@ class EkfEngine:
         assert t is not None  # (the history has rows)
         if t - self._t_nhc_s >= self.cfg.nhc_interval_s - NHC_SLACK_S:
             self._fuse_nonholonomic(t)  # 50 ms before now, however late the epoch
+
+    def _zero_rate(self, fix: GnssFix, t_e: float) -> list[Measurement]:
+        """Zero-rate updates (:func:`fuse_zero_rate`) at rest, one per span between two
+        epochs whose speeds over ground were under ``stationary_speed_mps``, each taken
+        ``ZERO_RATE_CHECK_S`` after its end: if the mean rate from its start to now is what
+        the bias leaves (within ``gate_sigma`` of P's z-bias sigma and the noise's), the
+        vehicle did not turn over it. A tractor inching round a full-lock turn is under that
+        speed at 0.5 deg/s, which one epoch's mean (0.1 deg/s of noise) could not tell from
+        a bias: learnt as one for the 1.5 s its first check took, it left the heading 0.5
+        deg off 30 s later."""
+        rest = self._rest_epochs_s
+        if fix.sog_mps is None or fix.sog_mps >= self.cfg.stationary_speed_mps:
+            rest.clear()
+            return []
+        rest.append(t_e)
+        hist, tun, p = self._hist, self._tuning, self._p
+        assert hist is not None and tun is not None and p is not None
+        out: list[Measurement] = []
+        while len(rest) > 1 and rest[1] <= t_e - ZERO_RATE_CHECK_S:
+            a, b = rest.popleft(), rest[0]
+            if a < hist.oldest_s():
+                continue
+            w_check = hist.mean_rate(0.5 * (a + t_e), 0.5 * (t_e - a))
+            var = p[BG.start + 2, BG.start + 2] + tun.q_gyro_rad2_per_s / (t_e - a)
+            if (
+                float(np.linalg.norm(w_check)) >= self.cfg.stationary_rate_dps * DEG_TO_RAD
+                or float(w_check[2]) ** 2 > self.cfg.gate_sigma**2 * var
+            ):
+                self.counters.zero_rate_rejected += 1
+                continue
+            row = hist.at(b)
+            assert row is not None  # (within the history, as a is)
+            w = hist.mean_rate(0.5 * (a + b), 0.5 * (b - a))
+            out.append(
+                fuse_zero_rate(row[ROW_C].reshape(3, 3), float(w[2]), b - a, tun.q_gyro_rad2_per_s)
+            )
+        return out
 
     def _lever_rate(self, t_e: float, lever_m: float) -> tuple[Array, float]:
         """Body rate at ``t_e`` for a lever-arm velocity, and that velocity's 1-sigma over a

@@ -157,6 +157,7 @@ class HeadingChannel:
         self._rejected_since_s: float | None = None
         self._t_last_s: float | None = None  # previous correction epoch
         self._p_psi_rad2 = math.pi**2  # heading error variance (unknown until aligned)
+        self._p_rest_rad2 = math.pi**2  # the same at the start of the window at rest
 
     # ------------------------------------------------------------------ reference choice
 
@@ -301,12 +302,27 @@ class HeadingChannel:
         self._window = None
         self._p_psi_rad2 = sigma_rad**2
 
-    def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> None:
+    def rest_began(self) -> None:
+        """A window at rest starts: its heading variance is what a hold at its end keeps."""
+        self._p_rest_rad2 = self._p_psi_rad2
+
+    def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> bool:
         """Zero-rate update at rest: the mean bias-corrected body z rate over ``window_s``
-        is the residual z bias, variance ARW^2 / window (engine vibration averages out)."""
+        is the residual z bias, variance ARW^2 / window (engine vibration averages out).
+
+        True if taken: then the vehicle has not turned, and the caller holds the heading
+        where it was at the window's start (the gyro's drift over it, random walk and bias
+        error alike, taken out), so the heading variance is the start's again. Refused
+        beyond ``glitch_sigma`` of the bias's and the mean's sigma: a turn on the spot, or
+        creeping round a tight turn under the stationary speed."""
         self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
-        self.kf.update(mean_w_z_rps, self._arw**2 / window_s)
         self._t_kf_s = t_s
+        r = self._arw**2 / window_s
+        if mean_w_z_rps**2 > self.cfg.glitch_sigma**2 * (self.kf.p_rps2 + r):
+            return False
+        self.kf.update(mean_w_z_rps, r)
+        self._p_psi_rad2 = min(self._p_psi_rad2, self._p_rest_rad2)
+        return True
 
     def _observe_bias(
         self, t_s: float, r_rad: float, hc_rad: float, ref: HeadingReference, c22: float

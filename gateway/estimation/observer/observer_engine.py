@@ -266,7 +266,9 @@ class ObserverEngine:
         # reference point at the last still epoch, N and E, m: the fix's 1-sigma, time, quality
         self._stop_ne_m: tuple[float, float, float, float, int] | None = None
         self._t_velocity_s: float | None = None  # last epoch that gave a velocity
-        self._zero_rate_start: _Row | None = None  # history row where the rest window began
+        # history row where the rest window began, and _turned_rad then
+        self._zero_rate_start: tuple[_Row, float] | None = None
+        self._turned_rad = 0.0  # sum of the platform's heading steps (_turn_platform)
         self._prev_rest_row: _Row | None = None  # newest row when last levelled at rest
         self._rest_last_row: _Row | None = None  # newest row at the last epoch at rest
         self._coasting = False  # GNSS velocity timed out: platform open loop
@@ -831,20 +833,28 @@ class ObserverEngine:
     def _zero_rate_update(self, t_e: float, row: _Row) -> None:
         """At rest, every ``gyro_z_window_s`` the mean body z rate is the residual z-gyro bias
         (heading channel KF): a 20 s stop pins it to ARW / sqrt(20 s) = 0.007 deg/s, where
-        course-over-ground heading could not observe it at all."""
+        course-over-ground heading could not observe it at all. The vehicle has not turned
+        over the window, so the platform's yaw is held where it was at its start: its drift
+        (less the heading corrections and steps applied meanwhile) is turned back. Without
+        the hold a 10 min stop left the heading 0.7 deg off, the gyro's random walk."""
         if not (self._stationary and self.cfg.estimate_biases) or self._imu.upset:
             self._zero_rate_start = None
             return
         start = self._zero_rate_start
-        if start is None or t_e - start[_T] < self.cfg.gyro_z_window_s:
+        if start is None or t_e - start[0][_T] < self.cfg.gyro_z_window_s:
             if start is None:
-                self._zero_rate_start = row
+                self._zero_rate_start = (row, self._turned_rad)
+                self._heading.rest_began()
             return
-        window_s = t_e - start[_T]
-        self._heading.observe_zero_rate(t_e, (row[_WI_Z] - start[_WI_Z]) / window_s, window_s)
-        assert self._observer is not None
-        self._observer.set_gyro_bias_z(self._heading.bg_z_rps)
-        self._zero_rate_start = row
+        row0, turned0 = start
+        self._zero_rate_start = (row, self._turned_rad)
+        window_s = t_e - row0[_T]
+        if self._heading.observe_zero_rate(t_e, (row[_WI_Z] - row0[_WI_Z]) / window_s, window_s):
+            assert self._observer is not None
+            self._observer.set_gyro_bias_z(self._heading.bg_z_rps)
+            drift = wrap_pi(row[_PSI] - row0[_PSI]) - (row[_HC] - row0[_HC])
+            self._turn_platform(-(drift - (self._turned_rad - turned0)))
+        self._heading.rest_began()
 
     def _level_at_rest(self, t_e: float, v_ref_ne_mps: tuple[float, float]) -> None:
         """Standing still, the tilt is the stop's mean specific force less the accelerometer
@@ -1465,6 +1475,7 @@ class ObserverEngine:
         """C <- Rz(dpsi) C (a heading step): the accel-bias filter's tilt error turns with it;
         the HDT screen's gyro heading breaks (the history's rows up to now keep the old)."""
         assert self._observer is not None and self._t_s is not None
+        self._turned_rad += dpsi_rad
         self._observer.rotate_about_vertical(dpsi_rad)
         self._tilt_loop.rotate_about_vertical(dpsi_rad)
         self._hdt_screen.restart(self._t_s)
