@@ -20,6 +20,8 @@ from nmea2000 import NMEA2000Decoder
 import dbc
 from drivers.logs.candump import read_candump
 from gateway.demo.accuracy import attitude_error_rad, truth_at
+from gateway.estimation.ekf.ekf_config import EkfConfig
+from gateway.estimation.observer.observer_config import ObserverConfig
 from sim_bus.truth import Truth
 
 
@@ -121,6 +123,7 @@ def _number(value: object) -> float | None:
 
 #: NAVGW_STATUS (PGN 0xFF22), byte 2 mode: DEGRADED (4) or FAULT (5) excuse inaccuracy.
 STATUS_PGN = 0xFF22
+NAVIGATING = 2
 DEGRADED = 4
 
 
@@ -131,6 +134,14 @@ def status_modes(path: str | Path) -> list[tuple[float, int]]:
         for f in read_candump(path)
         if (f.arbitration_id >> 8) & 0x3FFFF == STATUS_PGN and len(f.data) > 2
     ]
+
+
+def settled(modes: list[tuple[float, int]]) -> list[tuple[float, int]]:
+    """:func:`status_modes` from the first NAVIGATING on: before it the engine aligns, then
+    says DEGRADED while the course brings its heading within NAVIGATING's 0.5 deg 1-sigma
+    (a course at the 1.5 m/s of alignment is 0.76 deg: one to two seconds)."""
+    first = next((i for i, (_, mode) in enumerate(modes) if mode == NAVIGATING), len(modes))
+    return modes[first:]
 
 
 def _degraded_near(status: list[tuple[float, int]]) -> Callable[[float], bool]:
@@ -198,6 +209,33 @@ def tilt_beyond_stated(
             beyond.append(f"t={f.t - truth.t[0]:.3f} s roll/pitch {off[0]:.2f}/{off[1]:.2f} "
                           f"deg off, {f.sigma_deg:.2f} deg stated")  # fmt: skip
     return checked, beyond
+
+
+def heading_beyond_navigating(
+    log: str | Path, truth: Truth, margin_deg: float = 0.1
+) -> tuple[int, list[str]]:
+    """The never-lie check of the heading: the bus states no heading accuracy, so a mode
+    short of DEGRADED states it within the engines' ``navigating_heading_sigma_deg``. The
+    127257 frames sent without a NAVGW_STATUS saying DEGRADED or FAULT within 0.1 s, and
+    one line for each whose yaw is farther than ``margin_deg`` + 3 of that sigma from the
+    truth."""
+    sigma_deg = ObserverConfig().navigating_heading_sigma_deg
+    assert EkfConfig().navigating_heading_sigma_deg == sigma_deg
+    excused = _degraded_near(status_modes(log))
+    rows = [
+        m
+        for m in decode_log(log)
+        if m.id == "attitude" and _number(m.fields.get("yaw")) is not None and not excused(m.t)
+    ]
+    if not rows:
+        return 0, []
+    errors = attitude_errors_deg(rows, truth, after_s=-math.inf)[:, 2]
+    beyond = [
+        f"t={m.t - truth.t[0]:.3f} s heading {e:.2f} deg off"
+        for m, e in zip(rows, errors, strict=True)
+        if abs(e) > margin_deg + 3.0 * sigma_deg
+    ]
+    return len(rows), beyond
 
 
 def implausible_frames(

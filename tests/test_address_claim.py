@@ -470,7 +470,9 @@ def test_frames_from_the_address_we_left_are_not_ours_to_count(buses: tuple[Node
 # --- the fusion core: NAVGW_STATUS while a clone or a spoofer is about -----------------------
 
 MOTION = Motion([Segment(10.0), Segment(5.0, accel_mps2=0.6), Segment(25.0)])
-NAVIGATING_FROM_S = 14.0  # aligned and navigating on the default config from here on
+# aligned at 1.5 m/s (12.5 s), then navigating once the course has the heading within
+# 0.5 deg 1-sigma (about 2 s: the course at 1.5 m/s is 0.76 deg), on the default config
+NAVIGATING_FROM_S = 15.0
 CONFLICT_AT_S = 20.0
 
 

@@ -30,6 +30,7 @@ from tests.n2k_check import (
     DEGRADED,
     attitude_errors_deg,
     decode_log,
+    settled,
     status_modes,
     tilt_beyond_stated,
 )
@@ -214,7 +215,7 @@ def test_a_unit_bolted_off_and_not_configured_is_degraded_on_the_bus(
     out = tmp_path / "out.log"
     replay(bolted_off.imu_log, bolted_off.gnss_log, out, cfg)
     truth = Truth.load(bolted_off.truth_file)
-    modes = status_modes(out)
+    modes = settled(status_modes(out))
     degraded = [t for t, mode in modes if mode == DEGRADED]
     if configured == TRUE_RPY:
         assert degraded == []
@@ -252,7 +253,7 @@ def test_an_implement_lifted_at_every_headland_is_not_a_mounting_yaw(
     replay(
         lifting.imu_log, lifting.gnss_log, out, load_config(lifting.config_file).with_engine(engine)
     )
-    modes = status_modes(out)
+    modes = settled(status_modes(out))
     assert len(modes) > 5000
     assert [t for t, mode in modes if mode == DEGRADED] == []
     checked, beyond = tilt_beyond_stated(out, Truth.load(lifting.truth_file))

@@ -146,9 +146,9 @@ def test_a_silent_imu_is_a_fault_on_the_bus_then_the_engine_restarts(
     decoded = decode_log(log)
     nav = [m for m in decoded if m.id in ("attitude", "positionRapidUpdate")]
     assert not [m for m in nav if silent[0] + 0.05 <= motion_time(m.t) < silent[1]]
-    # after the restart: aligned again (the EKF levels on a moving vehicle after 10 s), and
-    # every position on the track
-    after = [Mode(d[2]) for t, d in frames if silent[1] + 12.0 <= t < silent[1] + 30.0]
+    # after the restart: aligned again (the EKF levels on a moving vehicle after 10 s, then
+    # its heading settles), and every position on the track
+    after = [Mode(d[2]) for t, d in frames if silent[1] + 13.0 <= t < silent[1] + 30.0]
     assert set(after) == {Mode.NAVIGATING}, after
     worst = 0.0
     for m in decoded:
@@ -251,7 +251,7 @@ def test_a_saturated_imu_is_a_fault_at_once_then_the_engine_realigns(
     assert not [m for m in attitude if span[0] <= motion_time(m.t) < span[1]]
     tilts = [tilt_rad(m) for m in attitude if m.fields["roll"] is not None]
     assert tilts and np.degrees(max(tilts)) < 1.0  # flat ground: level throughout
-    after = [Mode(d[2]) for t, d in frames if span[1] + 12.0 <= t < span[1] + 30.0]
+    after = [Mode(d[2]) for t, d in frames if span[1] + 13.0 <= t < span[1] + 30.0]
     assert set(after) == {Mode.NAVIGATING}
 
 

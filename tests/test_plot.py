@@ -73,10 +73,13 @@ def test_the_panels_hold_the_run(run: OutputRun) -> None:
     labels = {c.get_label() for c in dots}
     assert "rtk fixed" in labels
 
-    # mode bands from the first frame: initialising, aligning, then navigating
+    # mode bands from the first frame: initialising, aligning, degraded while the heading
+    # settles, then navigating
     bands = [str(c.get_label()) for c in axes["bands"].collections]
     modes = [b for b in bands if b.startswith("mode: ")]
-    assert modes[:3] == ["mode: initialising", "mode: aligning", "mode: navigating"]
+    assert modes[:4] == [
+        "mode: initialising", "mode: aligning", "mode: degraded", "mode: navigating"
+    ]  # fmt: skip
     start = np.asarray(axes["bands"].collections[0].get_paths()[0].vertices)[:, 0].min()
     assert start == pytest.approx(0.0, abs=0.5)
 

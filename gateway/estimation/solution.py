@@ -200,19 +200,22 @@ def navigation_mode(
     navigating_fix_qualities: tuple[int, ...],
     imu_gap: bool = False,
     gnss_glitch: bool = False,
+    heading_within_accuracy: bool = True,
 ) -> Mode:
     """The mode every engine reports, in order of precedence: FAULT (IMU data unusable),
     ALIGNING (no attitude/heading yet), COASTING (GNSS velocity timed out, the dead-reckoned
-    position still ``coast_within_accuracy``; DEGRADED beyond), DEGRADED (IMU alarm, a recent
-    gap in the IMU stream, GNSS positions rejected as glitches, or a fix quality outside
-    ``navigating_fix_qualities``), else NAVIGATING."""
+    position still ``coast_within_accuracy`` and the heading ``heading_within_accuracy``;
+    DEGRADED beyond), DEGRADED (IMU alarm, a recent gap in the IMU stream, GNSS positions
+    rejected as glitches, the heading's 1-sigma beyond NAVIGATING's, or a fix quality
+    outside ``navigating_fix_qualities``), else NAVIGATING."""
     if fault:
         return Mode.FAULT
     if not aligned:
         return Mode.ALIGNING
     if coasting:
-        return Mode.COASTING if coast_within_accuracy else Mode.DEGRADED
-    if imu_alarm or imu_gap or gnss_glitch:
+        within = coast_within_accuracy and heading_within_accuracy
+        return Mode.COASTING if within else Mode.DEGRADED
+    if imu_alarm or imu_gap or gnss_glitch or not heading_within_accuracy:
         return Mode.DEGRADED
     if fix is None or int(fix.quality) not in navigating_fix_qualities:
         return Mode.DEGRADED

@@ -70,6 +70,8 @@ class EkfConfig:
     gnss_white_share: float = 0.3  # share of a fix's sigma that is white epoch to epoch
     gnss_vel_sigma_mps: float = 0.02  # horizontal velocity 1-sigma with RTK fixed
     navigating_fix_qualities: tuple[int, ...] = (4,)  # other usable qualities: DEGRADED
+    # NAVIGATING states the heading within this 1-sigma (the bus carries none); beyond: DEGRADED
+    navigating_heading_sigma_deg: float = 0.5
 
     # --- gating and recovery ---
     gate_sigma: float = 5.0  # NIS gate: chi-square tail of a 5-sigma normal event per dof

@@ -82,6 +82,7 @@ from gateway.estimation.ekf.error_state import (
     fuse_position,
     fuse_velocity,
     fuse_zero_rate,
+    heading_row,
     predict,
     process_noise_psd,
     set_symmetrised,
@@ -1311,7 +1312,16 @@ class EkfEngine:
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
             imu_gap=self._imu.timing.degraded(),
             gnss_glitch=self._t_s is not None and self._track.doubtful(self._t_s),
+            heading_within_accuracy=self._heading_sigma_rad()
+            <= self.cfg.navigating_heading_sigma_deg * DEG_TO_RAD,
         )
+
+    def _heading_sigma_rad(self) -> float:
+        """The heading's 1-sigma from P (:func:`heading_row`), rad; pi before P."""
+        if self._p is None or self._ins is None:
+            return math.pi
+        h = heading_row(self._ins.c_bn)[0, ATT]
+        return math.sqrt(max(float(h @ self._p[ATT, ATT] @ h), 0.0))
 
 
 def _tilt_of_accel_bias(c_bn: Array) -> Array:

@@ -284,9 +284,20 @@ class HeadingChannel:
         """Heading 1-sigma as of the last reference (pi until aligned), rad."""
         return math.sqrt(self._p_psi_rad2)
 
+    def sigma_psi_at(self, t_s: float) -> float:
+        """Heading 1-sigma at ``t_s``: the last epoch's grown over the time since, rad (an
+        outage's heading is as uncertain as the gyro made it, not as the last fix left it)."""
+        gap_s = 0.0 if self._t_last_s is None else max(t_s - self._t_last_s, 0.0)
+        return math.sqrt(self._p_psi_rad2 + self._heading_growth_rad2(gap_s))
+
+    def _heading_growth_rad2(self, gap_s: float) -> float:
+        """Heading error variance added over ``gap_s`` without a reference: ARW^2 gap +
+        (sigma_bz gap)^2."""
+        return self._arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
+
     def _predict_heading_variance(self, gap_s: float) -> None:
-        """Heading error variance grows by ARW^2 gap + (sigma_bz gap)^2 without a reference."""
-        self._p_psi_rad2 += self._arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
+        """Heading error variance grown over ``gap_s`` without a reference."""
+        self._p_psi_rad2 += self._heading_growth_rad2(gap_s)
 
     def bridged(self, sigma_rad: float, restart: bool) -> None:
         """Lost IMU samples were bridged, turning the heading by an error of ``sigma_rad``

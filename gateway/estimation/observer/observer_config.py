@@ -75,6 +75,8 @@ class ObserverConfig:
     # --- learning gates ---
     learning_fix_qualities: tuple[int, ...] = (2, 4, 5)  # GGA DGNSS, RTK fixed, RTK float
     navigating_fix_qualities: tuple[int, ...] = (4,)  # other usable qualities: DEGRADED
+    # NAVIGATING states the heading within this 1-sigma (the bus carries none); beyond: DEGRADED
+    navigating_heading_sigma_deg: float = 0.5
     # a GNSS glitch: the velocity change over an epoch interval T disagrees with the
     # platform's by more than glitch_sigma of the white GNSS velocity noise plus e_gate T
     glitch_sigma: float = 5.0  # Rayleigh tail exp(-25/2): 4e-6 false alarms per epoch

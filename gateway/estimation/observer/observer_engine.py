@@ -1907,6 +1907,9 @@ class ObserverEngine:
             navigating_fix_qualities=self.cfg.navigating_fix_qualities,
             imu_gap=self._imu.timing.degraded(),
             gnss_glitch=self._t_s is not None and self._track.doubtful(self._t_s),
+            heading_within_accuracy=self._t_s is not None
+            and self._heading.sigma_psi_at(self._t_s)
+            <= self.cfg.navigating_heading_sigma_deg * DEG_TO_RAD,
         )
 
     def _sigma_bg_rps(self) -> float:
