@@ -317,22 +317,24 @@ class HeadingChannel:
         """A window at rest starts: its heading variance is what a hold at its end keeps."""
         self._p_rest_rad2 = self._p_psi_rad2
 
+    def held(self) -> None:
+        """The caller held the heading where it was at the window's start (the gyro's drift
+        over it, random walk and bias error alike, taken out): its variance is the start's."""
+        self._p_psi_rad2 = min(self._p_psi_rad2, self._p_rest_rad2)
+
     def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> bool:
         """Zero-rate update at rest: the mean bias-corrected body z rate over ``window_s``
         is the residual z bias, variance ARW^2 / window (engine vibration averages out).
 
-        True if taken: then the vehicle has not turned, and the caller holds the heading
-        where it was at the window's start (the gyro's drift over it, random walk and bias
-        error alike, taken out), so the heading variance is the start's again. Refused
-        beyond ``glitch_sigma`` of the bias's and the mean's sigma: a turn on the spot, or
-        creeping round a tight turn under the stationary speed."""
+        True if taken: then the vehicle has not turned (the caller may hold the heading,
+        :meth:`held`). Refused beyond ``glitch_sigma`` of the bias's and the mean's sigma: a
+        turn on the spot, or creeping round a tight turn under the stationary speed."""
         self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
         self._t_kf_s = t_s
         r = self._arw**2 / window_s
         if mean_w_z_rps**2 > self.cfg.glitch_sigma**2 * (self.kf.p_rps2 + r):
             return False
         self.kf.update(mean_w_z_rps, r)
-        self._p_psi_rad2 = min(self._p_psi_rad2, self._p_rest_rad2)
         return True
 
     def _observe_bias(

@@ -835,8 +835,10 @@ class ObserverEngine:
         (heading channel KF): a 20 s stop pins it to ARW / sqrt(20 s) = 0.007 deg/s, where
         course-over-ground heading could not observe it at all. The vehicle has not turned
         over the window, so the platform's yaw is held where it was at its start: its drift
-        (less the heading corrections and steps applied meanwhile) is turned back. Without
-        the hold a 10 min stop left the heading 0.7 deg off, the gyro's random walk."""
+        (less the steps applied meanwhile) is turned back. Without the hold a 10 min stop
+        left the heading 0.7 deg off, the gyro's random walk. Not where a heading reference
+        corrected it meanwhile (HDT at rest): that had taken part of the drift out already,
+        and the hold took it twice (0.9 deg the other way after a cold start)."""
         if not (self._stationary and self.cfg.estimate_biases) or self._imu.upset:
             self._zero_rate_start = None
             return
@@ -852,8 +854,11 @@ class ObserverEngine:
         if self._heading.observe_zero_rate(t_e, (row[_WI_Z] - row0[_WI_Z]) / window_s, window_s):
             assert self._observer is not None
             self._observer.set_gyro_bias_z(self._heading.bg_z_rps)
-            drift = wrap_pi(row[_PSI] - row0[_PSI]) - (row[_HC] - row0[_HC])
-            self._turn_platform(-(drift - (self._turned_rad - turned0)))
+            if row[_HC] == row0[_HC]:  # no heading control meanwhile
+                self._turn_platform(
+                    -(wrap_pi(row[_PSI] - row0[_PSI]) - (self._turned_rad - turned0))
+                )
+                self._heading.held()
         self._heading.rest_began()
 
     def _level_at_rest(self, t_e: float, v_ref_ne_mps: tuple[float, float]) -> None:
