@@ -145,10 +145,8 @@ class HeadingChannel:
     def __init__(self, cfg: ObserverConfig) -> None:
         self.cfg = cfg
         wander_rps = cfg.gyro_bias_stability_dps * DEG_TO_RAD / GM_ALLAN_FLOOR
-        self.kf = GyroZBiasKf(
-            cfg.gyro_z_bias_sigma0_dps * DEG_TO_RAD,
-            wander_rps * math.sqrt(2.0 / cfg.bias_correlation_time_s),
-        )
+        self._walk_rps_per_sqrt_s = wander_rps * math.sqrt(2.0 / cfg.bias_correlation_time_s)
+        self.kf = GyroZBiasKf(cfg.gyro_z_bias_sigma0_dps * DEG_TO_RAD, self._walk_rps_per_sqrt_s)
         self._arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self.reversing = False
         self._t_kf_s: float | None = None
@@ -312,6 +310,14 @@ class HeadingChannel:
         ``sigma_rad``: restart the bias interval and the heading variance."""
         self._window = None
         self._p_psi_rad2 = sigma_rad**2
+
+    def set_noise(self, arw_rps_per_sqrt_s: float, scale: float) -> None:
+        """The gyro's ARW as measured at rest, and how much noisier than its config the IMU
+        is (>= 1): its in-run wander taken as that much larger too, as the engine's bias
+        floors are. A unit twice as noisy as its datasheet (robustness `imu-noise-x2`) came
+        out of a 60 s outage 2.7 deg off with 0.56 stated, NAVIGATING half a second later."""
+        self._arw = arw_rps_per_sqrt_s
+        self.kf.q_rps2_per_s = (self._walk_rps_per_sqrt_s * scale) ** 2
 
     def rest_began(self) -> None:
         """A window at rest starts: its heading variance is what a hold at its end keeps."""

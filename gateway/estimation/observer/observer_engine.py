@@ -952,6 +952,7 @@ class ObserverEngine:
         self._floor_scale = max(r_g, r_a)
         self._accel_psd = (sigma_a * r_a) ** 2 * dt
         self._rest.set_noise(self._gyro_arw, self._accel_psd)
+        self._heading.set_noise(self._gyro_arw, self._floor_scale)
         for loop in (self._tilt_loop, self._ground_loop):
             loop.set_imu_noise(self._gyro_arw, self._accel_psd)
         if self._ba_filter is not None:
