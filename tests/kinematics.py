@@ -25,13 +25,16 @@ import numpy as np
 import numpy.typing as npt
 
 from drivers.samples import FixQuality, GnssFix, ImuSample
-from drivers.units import GRAVITY_MPS2
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, SQRT_SECONDS_PER_HOUR
 from gateway.estimation.geodesy import ned_to_lla
 from gateway.estimation.solution import Estimator, Solution
 
 Array = npt.NDArray[np.float64]
 ORIGIN_LLA = np.array([52.2, 10.5, 80.0])
 IMU_DT_S = 4.0 / 819.2
+#: The ADIS16334 datasheet's gyro angular random walk (2 deg/sqrt(h)) as white noise per
+#: sample, rad/s: ``imu_stream``'s ``noise_g_rps`` for a unit as its datasheet says.
+GYRO_ARW_PER_SAMPLE_RPS = 2.0 * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR / math.sqrt(IMU_DT_S)
 T0_S = 1_700_000_000.0  # host clock (UTC seconds) at motion time 0
 
 

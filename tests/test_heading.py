@@ -5,7 +5,7 @@ import math
 import numpy as np
 from numpy.testing import assert_allclose
 
-from drivers.units import DEG_TO_RAD, SQRT_SECONDS_PER_HOUR
+from drivers.units import DEG_TO_RAD
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.observer.heading_channel import (
     GyroZBiasKf,
@@ -17,7 +17,7 @@ from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Solution
 from tests.kinematics import (
-    IMU_DT_S,
+    GYRO_ARW_PER_SAMPLE_RPS,
     Motion,
     Segment,
     fed,
@@ -27,6 +27,8 @@ from tests.kinematics import (
     solutions,
     state_at,
 )
+from tests.test_outages import LEVER as OUTAGE_LEVER
+from tests.test_outages import MOTION as OUTAGE_DRIVE
 
 START = [Segment(3.0), Segment(3.0, accel_mps2=1.0)]  # still, then up to 3 m/s
 
@@ -219,27 +221,17 @@ def test_the_z_bias_from_a_noisy_course_is_as_good_as_its_epochs_and_says_so() -
 
 def test_the_heading_sigma_of_a_unit_noisier_than_its_datasheet_grows_with_its_noise() -> None:
     """The heading's 1-sigma at the end of a 30 s outage (what NAVIGATING's 0.5 deg is held
-    to) on a unit twice as noisy as its config says, parked 20 s first: its ARW as measured
+    to) on a unit twice as noisy as its config says, parked 10 s first: its ARW as measured
     at rest, and its in-run wander as much larger. Before, the config's figures: `outages`
     seed 520 with `imu-noise-x2` came out of its 60 s outage 2.7 deg off with 0.56 stated,
     NAVIGATING half a second later."""
-    motion = Motion(
-        [
-            Segment(20.0),
-            Segment(5.0, accel_mps2=0.6),
-            Segment(30.0),
-            Segment(10.0, yaw_rate_rps=0.1),
-            Segment(60.0),
-        ]
-    )
-    lever = (0.5, 0.0, -3.0)
-    arw_per_sample = 2.0 * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR / math.sqrt(IMU_DT_S)
+    motion, lever = OUTAGE_DRIVE, OUTAGE_LEVER  # parked 10 s, a turn, then a straight
     sigma_deg = []
     for scale in (1.0, 2.0):
         imu = imu_stream(
             motion,
             bias_g_rps=(0.0, 0.0, 0.02 * DEG_TO_RAD),
-            noise_g_rps=scale * arw_per_sample,
+            noise_g_rps=scale * GYRO_ARW_PER_SAMPLE_RPS,
             noise_a_mps2=0.01,
             seed=1,
         )

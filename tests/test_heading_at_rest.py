@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from drivers.units import DEG_TO_RAD, SQRT_SECONDS_PER_HOUR, wrap_pi
+from drivers.units import DEG_TO_RAD, wrap_pi
 from gateway.config.gateway_config import Engine, load_config
 from gateway.estimation.ekf.ekf_config import EkfConfig
 from gateway.estimation.ekf.ekf_engine import EkfEngine
@@ -24,7 +24,7 @@ from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, SimRun, generate
 from sim_bus.truth import Truth
 from tests.kinematics import (
-    IMU_DT_S,
+    GYRO_ARW_PER_SAMPLE_RPS,
     Motion,
     Segment,
     gnss_stream,
@@ -50,8 +50,6 @@ MOTION = Motion(
     ],
     yaw0_rad=0.7,
 )
-#: the datasheet's angular random walk, as white noise per sample
-ARW_PER_SAMPLE_RPS = 2.0 * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR / math.sqrt(IMU_DT_S)
 
 
 def _engine(name: str) -> LearningEstimator:
@@ -77,7 +75,7 @@ def test_a_ten_minute_stop_holds_the_heading_and_says_navigating(
     imu = imu_stream(
         MOTION,
         bias_g_rps=(0.0, 0.0, 0.03 * DEG_TO_RAD),
-        noise_g_rps=ARW_PER_SAMPLE_RPS,
+        noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS,
         noise_a_mps2=0.01,
         seed=seed,
     )
@@ -106,7 +104,7 @@ def test_inching_round_a_full_lock_turn_is_not_taken_for_a_gyro_bias(name: str) 
         [*MOTION.segments[:6], Segment(20.0), Segment(30.0, yaw_rate_rps=0.5 * DEG_TO_RAD)],
         yaw0_rad=MOTION.yaw0_rad,
     )
-    imu = imu_stream(turn, noise_g_rps=ARW_PER_SAMPLE_RPS, noise_a_mps2=0.01, seed=3)
+    imu = imu_stream(turn, noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS, noise_a_mps2=0.01, seed=3)
     fixes = gnss_stream(turn, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=3)
     out = solutions(_engine(name), imu, fixes)
     t_end, sol = out[-1]
