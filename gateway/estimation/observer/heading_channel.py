@@ -13,7 +13,9 @@ uncertainty ((sigma_bz gap)^2), and each reference shrinks it by its sigma (COG:
 speed, so 0.4 deg at 3 m/s and 1.1 deg at 1 m/s). In steady state this is a time constant
 sigma_ref sqrt(T) / ARW (COG at 3 m/s: 3.6 s, at 1 m/s: 11 s) instead of a fixed 2 s that let
 the COG noise of low speed straight into the heading; after alignment or a long gap it is
-fast. K never exceeds T / ``tau_heading_s`` (the rate is applied one epoch late).
+fast. The rate is applied after the epoch's time (the epoch reaches the engine late), so
+the residual is taken from the heading at the epoch with the corrections applied since: no
+correction is taken twice, and K needs no cap.
 
 The z-gyro bias follows seed 001: the heading drift the gyro would have had without
 correction over an interval T is an observation of the residual bias (about the vertical;
@@ -240,9 +242,10 @@ class HeadingChannel:
     ) -> HeadingCorrection:
         """Heading correction for epoch ``t_s``; also one z-bias KF step per full interval.
 
-        ``psi_hat_rad`` is the platform heading at ``t_s``, ``hc_rad`` the cumulative heading
-        correction applied up to ``t_s`` (integral of w_pz), ``c22`` = C[2, 2] (body z vs
-        vertical). ``learn`` False (gates closed) restarts the bias interval.
+        ``psi_hat_rad`` is the platform heading at ``t_s`` with every correction applied so
+        far, ``hc_rad`` their sum (integral of w_pz, so psi_hat + hc is the uncorrected
+        heading), ``c22`` = C[2, 2] (body z vs vertical). ``learn`` False (gates closed)
+        restarts the bias interval.
         """
         interval_s = 0.0 if self._t_last_s is None else t_s - self._t_last_s
         self._t_last_s = t_s
@@ -268,12 +271,11 @@ class HeadingChannel:
             self._window = None
         if not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
             return HeadingCorrection(w_pz_rps=r / self.cfg.tau_heading_s)
-        return HeadingCorrection(w_pz_rps=r * self._gain(ref.sigma_rad, interval_s) / interval_s)
+        return HeadingCorrection(w_pz_rps=r * self._gain(ref.sigma_rad) / interval_s)
 
-    def _gain(self, sigma_ref_rad: float, interval_s: float) -> float:
+    def _gain(self, sigma_ref_rad: float) -> float:
         """Kalman gain of one heading reference (module docstring); updates the variance."""
-        k_max = interval_s / self.cfg.tau_heading_s
-        k = min(self._p_psi_rad2 / (self._p_psi_rad2 + sigma_ref_rad**2), k_max)
+        k = self._p_psi_rad2 / (self._p_psi_rad2 + sigma_ref_rad**2)
         self._p_psi_rad2 *= 1.0 - k
         return k
 

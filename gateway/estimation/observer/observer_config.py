@@ -92,7 +92,7 @@ class ObserverConfig:
     align_min_speed_mps: float = 1.5  # first course over ground used at this speed
 
     # --- heading channel (ALGORITHMS.md 2, seed 001) ---
-    tau_heading_s: float = 2.0  # shortest heading time constant (caps the heading KF gain)
+    tau_heading_s: float = 2.0  # heading time constant of an epoch after a gap (no gain)
     cog_min_speed_mps: float = 1.0  # course over ground is a heading reference above this
     reverse_detect_speed_mps: float = 0.3  # forward/reverse decided above this speed
     heading_gate_deg: float = 10.0  # larger heading residuals are rejected (glitch)

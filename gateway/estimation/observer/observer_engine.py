@@ -79,6 +79,7 @@ from gateway.estimation.observer.accel_bias_filter import (
     TrackEpoch,
 )
 from gateway.estimation.observer.coast_budget import CoastBudget
+from gateway.estimation.observer.course_alignment import CourseAlignment
 from gateway.estimation.observer.ground_constraint import (
     GROUND_TILT_RAD,
     GroundPeriod,
@@ -226,6 +227,7 @@ class ObserverEngine:
         self._t_position_s = 0.0  # epoch time the position channel was predicted to
         self._l_imu_f = tuple(float(x) for x in cfg.imu_lever_arm_m)
         self._l_imu_ant_m = math.dist(self._l_ant_f, self._l_imu_f)  # antenna to IMU, m
+        self._courses = CourseAlignment(cfg.heading_gate_deg * DEG_TO_RAD)
         # the constant terms of the roll/pitch variance (_sigma_tilt_rad)
         arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         self._gyro_arw = arw  # rad/sqrt(s), the white rate noise measured where it is more
@@ -1140,6 +1142,11 @@ class ObserverEngine:
         noisy as its datasheet learnt its x bias 0.02 m/s^2 off without it)."""
         return centred_rate_velocity_sigma_mps(self._gyro_arw, self._l_imu_ant_m)
 
+    def _ant_lever_sigma_mps(self) -> float:
+        """1-sigma of the antenna's lever-arm velocity about the reference point from
+        :meth:`_lever_rate`'s gyro noise, m/s: what it adds to a course's noise."""
+        return centred_rate_velocity_sigma_mps(self._gyro_arw, math.hypot(*self._l_ant_f))
+
     def _mean_rate(self, t0_s: float, row: _Row) -> Float3:
         """Mean bias-corrected body rate over [t0_s, row time], from the history, rad/s."""
         row0 = self._history_at(t0_s)
@@ -1573,15 +1580,22 @@ class ObserverEngine:
         """
         obs = self._observer
         assert obs is not None
+        cfg = self.cfg
         if not self._heading_aligned:
             if hdt_rad is not None:
-                target, sigma = hdt_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD
-            elif speed_ref_mps >= self.cfg.align_min_speed_mps:
-                target, sigma = cog_ref_rad, self.cfg.gnss_vel_sigma_mps / speed_ref_mps
+                target, sigma = hdt_rad, cfg.hdt_sigma_deg * DEG_TO_RAD
+            elif speed_ref_mps >= cfg.cog_min_speed_mps:
+                sigma_v = math.hypot(cfg.gnss_vel_sigma_mps, self._ant_lever_sigma_mps())
+                self._courses.add(t_e, wrap_pi(cog_ref_rad - row[_PSI]), sigma_v / speed_ref_mps)
+                if speed_ref_mps < cfg.align_min_speed_mps:
+                    return
+                offset, sigma = self._courses.offset(self._heading.kf.sigma_rps)
+                target = row[_PSI] + offset
             else:
                 return
             # yaw at t_e is psi_e; move it onto the reference, keep the gyro motion since t_e
             self._turn_platform(wrap_pi(target - row[_PSI]))
+            self._courses.clear()
             self._heading_aligned = True
             self._hint = None
             self._heading.aligned(sigma)
@@ -1595,10 +1609,16 @@ class ObserverEngine:
             self.counters.hdt_rejected += 1
             self._log.warning(t_e, screen.text(t_e), "hdt")
             hdt_rad = None
+        # the heading at t_e with the control applied since (the last epoch's, applied after
+        # t_e): what is left of the residual. From the row's heading alone, each epoch took
+        # the part of the last correction applied after t_e again, and the gain had to be
+        # capped at T / tau_heading (one epoch late): aligned 3.7 deg off on a course at
+        # 1.4 m/s, it took 2 s to come within 1.7 deg, NAVIGATING (slope-start seed 540).
+        psi_e = row[_PSI] - (self._hc_rad - row[_HC])
         ref = self._heading.select_reference(
-            t_e, row[_PSI], cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
+            t_e, psi_e, cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
         )
-        corr = self._heading.correct(t_e, row[_PSI], ref, row[_HC], c_bn_dd, obs.learn)
+        corr = self._heading.correct(t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn)
         if corr.step_rad:
             self._turn_platform(corr.step_rad)
         self._w_pz_rps = corr.w_pz_rps
@@ -1858,7 +1878,9 @@ class ObserverEngine:
         # positional, in the field order (keywords cost a third of the solution's build)
         return Solution(
             t, self._mode(coasting_s, within),
-            roll, pitch, yaw if self._heading_aligned else None, self._yaw_rate_rps(c9),
+            roll, pitch,
+            wrap_pi(yaw - self._heading_to_turn_rad(t)) if self._heading_aligned else None,
+            self._yaw_rate_rps(c9),
             lat, lon, alt, vel, obs.bg_hat_rps, obs.ba_hat_mps2,
             self._sigma_tilt_rad(coasting_s),
             quality, sats, hdop, age, geoid, station, talker,
@@ -1917,6 +1939,15 @@ class ObserverEngine:
             and self._heading.sigma_psi_at(self._t_s)
             <= self.cfg.navigating_heading_sigma_deg * DEG_TO_RAD,
         )
+
+    def _heading_to_turn_rad(self, t_s: float) -> float:
+        """What the last epoch's heading correction has still to turn the platform at
+        ``t_s``, rad: it is a rate over the epoch's period (a 1 Hz receiver's over the
+        second after it), while the heading channel's variance is the corrected heading's.
+        The heading sent is the corrected one (0.46 deg at 1 Hz while the z-gyro bias is
+        learnt, with 0.28 stated)."""
+        left_s = max(0.0, self._control_period_s - (t_s - self._control_from_s))
+        return self._w_pz_rps * left_s
 
     def _sigma_bg_rps(self) -> float:
         """x/y gyro bias 1-sigma: the turn-on sigma decaying with the learning exponent."""
