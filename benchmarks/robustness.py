@@ -15,7 +15,8 @@ pitch, yaw RMS (127257) and the reference point's horizontal RMS and max (129025
 the whole run the attitude frames that state an accuracy and
 those beyond 0.1 deg + 3 stated sigma of the truth (the never-lie check of docs/ROBUSTNESS.md),
 and those whose heading is beyond 0.1 deg + 3 x NAVIGATING's 0.5 deg 1-sigma without
-NAVGW_STATUS saying DEGRADED (the bus states no heading accuracy; the mode does).
+NAVGW_STATUS saying DEGRADED (the bus states no heading accuracy; the mode does), and the
+reference points (129025) beyond their mode's (`tests/n2k_check.py::position_beyond_mode`).
 Parameters are the product defaults; nothing here is tuned per variant.
 """
 
@@ -45,6 +46,7 @@ from tests.n2k_check import (
     attitude_errors_deg,
     decode_log,
     heading_beyond_navigating,
+    position_beyond_mode,
     position_errors_m,
     tilt_beyond_stated,
 )
@@ -147,7 +149,8 @@ def run_variant(
     name: str, seed: int, engines: Sequence[str] = ("observer", "ekf"), base: str = "field"
 ) -> dict[str, tuple[float, ...]]:
     """(roll, pitch, yaw RMS deg, ref RMS cm, ref max cm, attitude frames stating an
-    accuracy, those beyond it, headings beyond NAVIGATING's) of each engine on one variant."""
+    accuracy, those beyond it, headings beyond NAVIGATING's, positions beyond their mode's)
+    of each engine on one variant."""
     scenario = scenario_from_toml({"base": base, "name": name, **VARIANTS[name][1]})
     out: dict[str, tuple[float, ...]] = {}
     with tempfile.TemporaryDirectory(prefix="navgw-rob-") as tmp:
@@ -175,6 +178,7 @@ def run_variant(
             rms = np.sqrt(np.mean(np.square(att), axis=0))
             checked, beyond = tilt_beyond_stated(frames, truth)
             _, heading_beyond = heading_beyond_navigating(frames, truth)
+            _, position_beyond = position_beyond_mode(frames, truth)
             out[label] = (
                 *rms,
                 math.sqrt(float(np.mean(pos**2))),
@@ -182,6 +186,7 @@ def run_variant(
                 checked,
                 len(beyond),
                 len(heading_beyond),
+                len(position_beyond),
             )
     return out
 
@@ -197,7 +202,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     jobs = [(v, s) for v in args.variants for s in args.seeds]
     columns = [
         "roll rms", "pitch rms", "yaw rms", "ref rms cm", "ref max cm", "frames", "beyond",
-        "hdg beyond",
+        "hdg beyond", "pos beyond",
     ]  # fmt: skip
     print("| variant | what changes | seed | engine | " + " | ".join(columns) + " |")
     print("|---" * (4 + len(columns)) + "|")
@@ -208,11 +213,11 @@ def main(argv: Sequence[str] | None = None) -> None:
         )
         for (name, seed), result in zip(jobs, results, strict=True):
             for engine, row in result.items():
-                roll, pitch, yaw, ref, ref_max, checked, beyond, heading_beyond = row
+                roll, pitch, yaw, ref, ref_max, checked, beyond, hdg_beyond, pos_beyond = row
                 print(
                     f"| {name} | {VARIANTS[name][0]} | {seed} | {engine} | {roll:.3f} | "
                     f"{pitch:.3f} | {yaw:.3f} | {ref:.2f} | {ref_max:.2f} | {checked:.0f} | "
-                    f"{beyond:.0f} | {heading_beyond:.0f} |",
+                    f"{beyond:.0f} | {hdg_beyond:.0f} | {pos_beyond:.0f} |",
                     flush=True,
                 )
 

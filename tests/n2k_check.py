@@ -124,7 +124,11 @@ def _number(value: object) -> float | None:
 #: NAVGW_STATUS (PGN 0xFF22), byte 2 mode: DEGRADED (4) or FAULT (5) excuse inaccuracy.
 STATUS_PGN = 0xFF22
 NAVIGATING = 2
+COASTING = 3
 DEGRADED = 4
+#: A position sent NAVIGATING (RTK fixed: 1-2 cm) farther off than this is wrong, not
+#: inaccurate: a 1 Hz receiver's fix propagated over its second was 14 cm off at worst.
+NAVIGATING_POSITION_M = 0.2
 
 
 def status_modes(path: str | Path) -> list[tuple[float, int]]:
@@ -235,6 +239,36 @@ def heading_beyond_navigating(
         for m, e in zip(rows, errors, strict=True)
         if abs(e) > margin_deg + 3.0 * sigma_deg
     ]
+    return len(rows), beyond
+
+
+def position_beyond_mode(log: str | Path, truth: Truth) -> tuple[int, list[str]]:
+    """The never-lie check of the reference point (129025): the bus states its accuracy
+    through the mode. Of the positions sent without a NAVGW_STATUS saying DEGRADED or FAULT
+    within 0.1 s, one line for each COASTING farther than 3 x ``coast_sigma_m`` (the
+    1-sigma COASTING states) from the truth, or NAVIGATING farther than
+    :data:`NAVIGATING_POSITION_M`; and how many were checked."""
+    coast_sigma_m = ObserverConfig().coast_sigma_m
+    assert EkfConfig().coast_sigma_m == coast_sigma_m
+    status = status_modes(log)
+    excused, times = _degraded_near(status), [t for t, _ in status]
+    rows = [
+        m
+        for m in decode_log(log)
+        if m.id == "positionRapidUpdate"
+        and _number(m.fields.get("latitude")) is not None
+        and not excused(m.t)
+    ]
+    if not rows:
+        return 0, []
+    errors = position_errors_m(rows, truth, after_s=-math.inf)
+    beyond = []
+    for m, e in zip(rows, errors, strict=True):
+        i = bisect.bisect_right(times, m.t) - 1
+        mode = status[i][1] if i >= 0 else None
+        bound = 3.0 * coast_sigma_m if mode == COASTING else NAVIGATING_POSITION_M
+        if e > bound:
+            beyond.append(f"t={m.t - truth.t[0]:.3f} s position {e:.2f} m off, mode {mode}")
     return len(rows), beyond
 
 
