@@ -8,7 +8,12 @@ import numpy as np
 import pytest
 
 from drivers.samples import FixQuality, GnssFix
-from gateway.estimation.epoch_clock import DELAY_WINDOW, EpochClock, EpochTime
+from gateway.estimation.epoch_clock import (
+    DELAY_WINDOW,
+    RECEIVE_EPOCH_SIGMA_S,
+    EpochClock,
+    EpochTime,
+)
 
 T_UTC0 = 1_700_000_000.0
 
@@ -142,3 +147,16 @@ def test_a_receivers_utc_behind_or_standing_still_is_placed_by_its_arrival_on_a_
     true = np.array(utc_times(stream))
     assert np.max(np.abs(t_e[50:100] - true[50:100])) < 0.01  # the serial jitter's spread
     assert np.array_equal(t_e[:50], true[:50]) and np.array_equal(t_e[100:], true[100:])
+
+
+def test_the_clock_states_how_well_it_knows_an_epoch_time() -> None:
+    """On a host that follows UTC an epoch's time is the receiver's UTC, exact; on a free
+    one, and before the sentences give a date, it is an arrival less a configured latency,
+    uncertain by :data:`RECEIVE_EPOCH_SIGMA_S`, which the EKF weighs its fixes by."""
+    synced, free, undated = (EpochClock(EpochTime.AUTO, 0.05) for _ in range(3))
+    epochs(synced, fixes(0.0, 0.068, 0.003))
+    epochs(free, fixes(30.0, 0.068, 0.003))
+    undated.epoch_time(dataclasses.replace(fixes(0.0, 0.068, 0.003)[0], t_utc=None))
+    assert synced.host_follows_utc and synced.epoch_sigma_s == 0.0
+    assert free.host_follows_utc is False and free.epoch_sigma_s == RECEIVE_EPOCH_SIGMA_S
+    assert undated.host_follows_utc is None and undated.epoch_sigma_s == RECEIVE_EPOCH_SIGMA_S

@@ -183,6 +183,7 @@ class EkfEngine:
         self._log = LogLimiter(log)
         self._corrections = TiltCorrections()  # recent attitude corrections: a bias change?
         self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self._last_vel: tuple[float, tuple[float, float]] | None = None
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
         self._l_imu_m = float(np.linalg.norm(self._l_imu_b))
@@ -1138,7 +1139,13 @@ class EkfEngine:
         sig = fix_position_sigma_m(fix)
         if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or sig is None:
             return None
-        return np.maximum(np.array(sig), 1e-3)
+        sig_ned = np.maximum(np.array(sig), 1e-3)
+        vel, sigma_t = fix.vel_ne_mps, self._clock.epoch_sigma_s
+        if sigma_t and vel is not None:
+            # the position of an instant within sigma_t of the epoch: v sigma_t (the
+            # diagonal of sigma_t^2 v v')
+            sig_ned[:2] = np.hypot(sig_ned[:2], np.array(vel) * sigma_t)
+        return sig_ned
 
     def _gnss_velocity(self, fix: GnssFix) -> tuple[Array, float] | None:
         """Horizontal antenna velocity (2,) and its 1-sigma, from SOG/COG.
@@ -1151,7 +1158,14 @@ class EkfEngine:
         sigma = max(self.cfg.gnss_vel_sigma_mps, DEFAULT_GNSS_SIGMAS[int(fix.quality)][2])
         vel = fix.vel_ne_mps
         if vel is None or fix.sog_mps < COG_RELIABLE_SPEED_MPS:
+            self._last_vel = None
             return np.zeros(2), math.hypot(sigma, fix.sog_mps)
+        last, self._last_vel = self._last_vel, (fix.t, vel)
+        sigma_t = self._clock.epoch_sigma_s
+        if sigma_t and last is not None and fix.t > last[0]:
+            # the velocity of an instant within sigma_t of the epoch: a sigma_t
+            accel = math.dist(vel, last[1]) / (fix.t - last[0])
+            sigma = math.hypot(sigma, accel * sigma_t)
         return np.array(vel), sigma
 
     def _update_motion_flags(self) -> None:
