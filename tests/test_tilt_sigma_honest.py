@@ -25,7 +25,7 @@ from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.solution import LearnedState, Mode, Solution
 from gateway.fusion.engines import make_engine
 from gateway.offline.log_replay import replay
-from sim_bus.scenarios import SCENARIOS, SimRun, generate, scenario_from_toml
+from sim_bus.scenarios import SCENARIOS, SimRun, gateway_config, generate, scenario_from_toml
 from sim_bus.truth import Truth
 from tests.kinematics import (
     IMU_DT_S,
@@ -521,12 +521,8 @@ def test_a_free_running_host_clock_states_the_epoch_times_it_cannot_know(tmp_pat
     epoch time 30 ms uncertain moves (v dt, a dt): none beyond, through `navgw replay`."""
     scenario = scenario_from_toml({"base": "field", "gnss": {"host_clock_offset_s": 30.0}})
     run = generate(scenario, tmp_path, seed=543)
-    truth = Truth.load(run.truth_file)
-    vehicle = VehicleSection(
-        antenna_lever_arm_m=tuple(float(v) for v in truth.antenna_lever_arm_m),  # type: ignore[arg-type]
-        imu_lever_arm_m=tuple(float(v) for v in truth.imu_lever_arm_m),  # type: ignore[arg-type]
-    )
     out = tmp_path / "out.log"
+    vehicle = gateway_config(scenario, receiver_latency_s=0.0).vehicle  # [gnss] left default
     replay(run.imu_log, run.gnss_log, out, GatewayConfig(vehicle=vehicle).with_engine(Engine.EKF))
-    checked, beyond = tilt_beyond_stated(out, truth)
+    checked, beyond = tilt_beyond_stated(out, Truth.load(run.truth_file))
     assert checked > 40_000 and beyond == []

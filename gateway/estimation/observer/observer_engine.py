@@ -815,7 +815,7 @@ class ObserverEngine:
             # at once, so each epoch corrects for its full period. Epochs that reach the
             # engine in a burst (a loaded host) otherwise replaced each other's rates unused:
             # one correction in twenty, and the tilt loop all but open.
-            left = self._control_period_s - (self._t_s - self._control_from_s)
+            left = self._control_left_s(self._t_s)
             if left > 0.0:
                 self._observer.apply_control(left)
                 self._hc_rad += self._w_pz_rps * left
@@ -1940,14 +1940,17 @@ class ObserverEngine:
             <= self.cfg.navigating_heading_sigma_deg * DEG_TO_RAD,
         )
 
+    def _control_left_s(self, t_s: float) -> float:
+        """What is left at ``t_s`` of the period the last epoch's control rates are for, s."""
+        return max(0.0, self._control_period_s - (t_s - self._control_from_s))
+
     def _heading_to_turn_rad(self, t_s: float) -> float:
         """What the last epoch's heading correction has still to turn the platform at
         ``t_s``, rad: it is a rate over the epoch's period (a 1 Hz receiver's over the
         second after it), while the heading channel's variance is the corrected heading's.
         The heading sent is the corrected one (0.46 deg at 1 Hz while the z-gyro bias is
         learnt, with 0.28 stated)."""
-        left_s = max(0.0, self._control_period_s - (t_s - self._control_from_s))
-        return self._w_pz_rps * left_s
+        return self._w_pz_rps * self._control_left_s(t_s)
 
     def _sigma_bg_rps(self) -> float:
         """x/y gyro bias 1-sigma: the turn-on sigma decaying with the learning exponent."""
