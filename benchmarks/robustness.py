@@ -4,19 +4,22 @@ Run:  .venv/bin/python benchmarks/robustness.py                     # every vari
       .venv/bin/python benchmarks/robustness.py --variants default gnss-1hz --seeds 1 2
       .venv/bin/python benchmarks/robustness.py --engines observer observer-eq12
       .venv/bin/python benchmarks/robustness.py --base headland-reversing --seeds 42
+      .venv/bin/python benchmarks/robustness.py --variants gnss-1hz+host-clock-free
 
 Each variant changes one thing a user's setup may differ in (receiver rate, latency, clock,
 sentences, IMU mounting, IMU grade, antenna position, output rate of the IMU) against the
-`field` preset (or ``--base``). The run is simulated, then replayed exactly as ``navgw
-replay`` does, with a config holding only the SPEC 5 [vehicle] keys (everything else at its
-default), and the output frames are decoded with the independent ``nmea2000`` package and
-compared with the truth after 10 minutes (after half the run where it is under 15): roll,
-pitch, yaw RMS (127257) and the reference point's horizontal RMS and max (129025); and over
-the whole run the attitude frames that state an accuracy and
-those beyond 0.1 deg + 3 stated sigma of the truth (the never-lie check of docs/ROBUSTNESS.md),
-and those whose heading is beyond 0.1 deg + 3 x NAVIGATING's 0.5 deg 1-sigma without
-NAVGW_STATUS saying DEGRADED (the bus states no heading accuracy; the mode does), and the
-reference points (129025) beyond their mode's (`tests/n2k_check.py::position_beyond_mode`).
+`field` preset (or ``--base``); ``a+b`` applies both (sections merged key by key, the later
+variant's keys winning), for setups that differ in more than one thing. The run is
+simulated, then replayed exactly as ``navgw replay`` does, with a config holding only the
+SPEC 5 [vehicle] keys (everything else at its default), and the output frames are decoded
+with the independent ``nmea2000`` package and compared with the truth after 10 minutes
+(after half the run where it is under 15): roll, pitch, yaw RMS (127257) and the reference
+point's horizontal RMS and max (129025); and over the whole run the attitude frames that
+state an accuracy and those beyond 0.1 deg + 3 stated sigma of the truth (the never-lie
+check of docs/ROBUSTNESS.md), and those whose heading is beyond 0.1 deg + 3 x NAVIGATING's
+0.5 deg 1-sigma without NAVGW_STATUS saying DEGRADED (the bus states no heading accuracy;
+the mode does), and the reference points (129025) beyond their mode's
+(`tests/n2k_check.py::position_beyond_mode`).
 Parameters are the product defaults; nothing here is tuned per variant.
 """
 
@@ -142,6 +145,24 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
         {"vehicle": {"antenna_lever_arm_m": [1.5, 0.8, -3.5]}},
     ),
 }
+
+
+def variant_overrides(name: str) -> dict[str, dict[str, Any]]:
+    """The scenario sections of a variant, or of ``a+b+...`` merged left to right."""
+    merged: dict[str, dict[str, Any]] = {}
+    for part in name.split("+"):
+        if part not in VARIANTS:
+            raise ValueError(f"unknown variant {part!r} in {name!r}; known: {', '.join(VARIANTS)}")
+        for section, keys in VARIANTS[part][1].items():
+            merged[section] = {**merged.get(section, {}), **keys}
+    return merged
+
+
+def variant_label(name: str) -> str:
+    """What a variant, or each part of ``a+b``, changes."""
+    return "; ".join(VARIANTS[part][0] for part in name.split("+"))
+
+
 AFTER_S = 600.0  # the targets' "after 10 minutes" (half the run where it is under 15)
 
 
@@ -151,7 +172,7 @@ def run_variant(
     """(roll, pitch, yaw RMS deg, ref RMS cm, ref max cm, attitude frames stating an
     accuracy, those beyond it, headings beyond NAVIGATING's, positions beyond their mode's)
     of each engine on one variant."""
-    scenario = scenario_from_toml({"base": base, "name": name, **VARIANTS[name][1]})
+    scenario = scenario_from_toml({"base": base, "name": name, **variant_overrides(name)})
     out: dict[str, tuple[float, ...]] = {}
     with tempfile.TemporaryDirectory(prefix="navgw-rob-") as tmp:
         run = generate(scenario, tmp, seed)
@@ -193,12 +214,23 @@ def run_variant(
 
 def main(argv: Sequence[str] | None = None) -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--variants", nargs="+", choices=list(VARIANTS), default=list(VARIANTS))
+    parser.add_argument(
+        "--variants",
+        nargs="+",
+        default=list(VARIANTS),
+        metavar="VARIANT[+VARIANT]",
+        help=f"of {', '.join(VARIANTS)}; a+b applies both",
+    )
     parser.add_argument("--seeds", nargs="+", type=int, default=[1])
     parser.add_argument("--engines", nargs="+", choices=list(ENGINES), default=["observer", "ekf"])
     parser.add_argument("--base", default="field", choices=sorted(SCENARIOS), help="scenario")
     parser.add_argument("--jobs", type=int, default=2, help="worker processes")
     args = parser.parse_args(argv)
+    for name in args.variants:
+        try:
+            variant_overrides(name)
+        except ValueError as exc:
+            parser.error(str(exc))
     jobs = [(v, s) for v in args.variants for s in args.seeds]
     columns = [
         "roll rms", "pitch rms", "yaw rms", "ref rms cm", "ref max cm", "frames", "beyond",
@@ -215,7 +247,7 @@ def main(argv: Sequence[str] | None = None) -> None:
             for engine, row in result.items():
                 roll, pitch, yaw, ref, ref_max, checked, beyond, hdg_beyond, pos_beyond = row
                 print(
-                    f"| {name} | {VARIANTS[name][0]} | {seed} | {engine} | {roll:.3f} | "
+                    f"| {name} | {variant_label(name)} | {seed} | {engine} | {roll:.3f} | "
                     f"{pitch:.3f} | {yaw:.3f} | {ref:.2f} | {ref_max:.2f} | {checked:.0f} | "
                     f"{beyond:.0f} | {hdg_beyond:.0f} | {pos_beyond:.0f} |",
                     flush=True,
