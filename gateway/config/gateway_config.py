@@ -417,6 +417,10 @@ RETIRED_KEYS: dict[str, dict[str, str]] = {
         "gyro_z_bias_walk_dps_per_sqrt_s": "the z-gyro bias's random walk is the in-run wander "
         "of gyro_bias_stability_dps and bias_correlation_time_s (since 2026-12-04)",
     },
+    "ekf": {
+        "align_yaw_sigma_deg": "the first heading's 1-sigma is that of the courses it is "
+        "taken from, the last second's above cog_min_speed_mps (since 2026-12-05)",
+    },
 }
 
 

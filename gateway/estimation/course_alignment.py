@@ -1,14 +1,16 @@
-"""The observer's first heading from the courses of the last second, not of one epoch.
+"""The first heading from the courses of the last second, not of one epoch (both engines).
 
 Before the heading is known the platform's yaw is arbitrary, but the gyro carries it from
 epoch to epoch. Each epoch's course (the reference point's, from the antenna's with the lever
 arm's velocity taken out: :func:`gateway.estimation.lever_arm.heading_from_antenna_course`)
 less the platform's yaw then is a measurement of one offset: the platform's azimuth error.
 At the alignment speed a course is 0.8 deg 1-sigma (RTK Doppler, 2 cm/s at 1.4 m/s), so one
-epoch alone left the heading 3.7 deg off on a 3-sigma draw with the mast rocking on a slope
-(slope-start seed 540), the heading channel stating 0.74. The offsets of the epochs within
-:data:`ALIGN_WINDOW_S`, each weighed by its course's sigma, average that noise down; the
-z-gyro bias, which turned the platform between them, adds its share.
+epoch alone left the observer's heading 3.7 deg off on a 3-sigma draw with the mast rocking on
+a slope (slope-start seed 540), its heading channel stating 0.74; the EKF, aligning on one
+course with 3 deg stated, said DEGRADED for 0.8-1.8 s until its filter had averaged the
+courses itself. The offsets of the epochs within :data:`ALIGN_WINDOW_S`, each weighed by its
+course's sigma, average that noise down; the z-gyro bias, which turned the platform between
+them, adds its share.
 """
 
 from __future__ import annotations

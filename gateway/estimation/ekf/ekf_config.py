@@ -92,8 +92,9 @@ class EkfConfig:
     # --- initial alignment ---
     align_quiet_rate_dps: float = 2.0  # |w| below this counts as still
     align_tilt_time_s: float = 1.0  # mean specific force over this long gives roll/pitch
-    align_min_speed_mps: float = 1.5  # first course over ground used at this speed
-    align_yaw_sigma_deg: float = 3.0  # heading 1-sigma after COG alignment
+    align_min_speed_mps: float = 1.5  # first heading at this speed, from the courses ...
+    cog_min_speed_mps: float = 1.0  # ... over ground of the last second above this
+    heading_gate_deg: float = 10.0  # a course this far off the latest one's is another drive
     align_vel_sigma_mps: float = 0.1  # velocity 1-sigma at alignment (lever arm, latency)
 
     # --- read-out ---

@@ -45,7 +45,7 @@ import numpy.typing as npt
 
 from drivers.log_limit import LogLimiter
 from drivers.samples import DEFAULT_GNSS_SIGMAS, FixQuality, Float3, GnssFix, ImuSample
-from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, wrap_pi
 from gateway.estimation.attitude import (
     IDENTITY9,
     Mat9,
@@ -63,6 +63,7 @@ from gateway.estimation.attitude import (
 )
 from gateway.estimation.bias_change import BiasChange, TiltCorrections, bias_change_text
 from gateway.estimation.chassis import CHASSIS_PITCH_SIGMA_RAD
+from gateway.estimation.course_alignment import CourseAlignment
 from gateway.estimation.ekf.ekf_config import EkfConfig, EkfTuning
 from gateway.estimation.ekf.error_state import (
     ATT,
@@ -238,6 +239,7 @@ class EkfEngine:
         self._t_accepted_rx_s: float | None = None  # receive time of the last accepted fix
         self._t_pos_epoch_s: float | None = None  # epoch of the last accepted position
         self._track = GnssTrack()  # the receiver's own track: glitch or filter off?
+        self._courses = CourseAlignment(self.cfg.heading_gate_deg * DEG_TO_RAD)  # 1st heading
         self._t_nhc_s = -math.inf
         # the IMU path steps the covariance after this much time (s) without a step
         self._step_s = self.cfg.covariance_period_s
@@ -752,8 +754,9 @@ class EkfEngine:
         return step * math.exp(-(t - t_step) / TILT_STEP_TAU_S) if step else 0.0
 
     def _align_heading(self, fix: GnssFix, t_e: float, row: Array) -> None:
-        """First heading from HDT, or from the antenna's course at ``align_min_speed_mps``
-        (its lever-arm velocity taken out, :func:`heading_from_antenna_course`), forward
+        """First heading from HDT, or at ``align_min_speed_mps`` from the antenna's courses
+        of the last second (:class:`CourseAlignment`, each from ``cog_min_speed_mps`` on,
+        its lever-arm velocity taken out, :func:`heading_from_antenna_course`), forward
         unless the INS's velocity change since the last epoch at rest points backwards along
         body x (taken as forward, a start reversing out of a shed aligned 180 deg off and the
         filter then read the deceleration as tilt: pitch 5.7 deg off, NAVIGATING).
@@ -765,26 +768,22 @@ class EkfEngine:
         turn-on sigmas (gyro from the rest mean if there was one).
         """
         sig_pos = self._position_sigma(fix)
-        vel = fix.vel_ne_mps
         if sig_pos is None:
             return
+        yaw_e = math.atan2(row[ROW_C][3], row[ROW_C][0])
         if fix.heading_rad is not None:
             target, sig_yaw = fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD
-        elif vel is not None and math.hypot(*vel) >= self.cfg.align_min_speed_mps:
-            w_e = self._lever_rate(t_e, self._l_imu_ant_m)[0]
-            target = heading_from_antenna_course(
-                vel, row[ROW_C], w_e, self._l_ant_b, self._forward_at(vel, row, w_e)
-            )
-            sig_yaw = self.cfg.align_yaw_sigma_deg * DEG_TO_RAD
+        elif (course := self._course_offset(fix, t_e, row, yaw_e)) is not None:
+            target, sig_yaw = yaw_e + course[0], course[1]
         else:
             return
         ins, hist, tun = self._ins, self._hist, self._tuning
         assert ins is not None and hist is not None and tun is not None
-        c_e = row[ROW_C].reshape(3, 3)
-        rot = exp_so3((0.0, 0.0, target - math.atan2(c_e[1, 0], c_e[0, 0])))
+        rot = exp_so3((0.0, 0.0, target - yaw_e))
         ins.rotate(rot)  # and the velocity integrated in the old azimuth, rows too
         ins.v_ned_mps = [float(x) for x in rot @ np.array(ins.v_ned_mps)]
         self._hint = None
+        self._courses.clear()
         hist.turn(to_mat9(rot), ins.p_ned_m)
         row_aligned = hist.at(t_e)
         assert row_aligned is not None
@@ -875,6 +874,30 @@ class EkfEngine:
         self._tuning, self._q_c = tun, process_noise_psd(tun)
         self._q_c[FIX] = fix_q
         return tun
+
+    def _course_offset(
+        self, fix: GnssFix, t_e: float, row: Array, yaw_e: float
+    ) -> tuple[float, float] | None:
+        """The platform's azimuth error at ``t_e`` and its 1-sigma, rad, from the courses of
+        the last second (:class:`CourseAlignment`), once the antenna moves at
+        ``align_min_speed_mps``; None before. Each course from ``cog_min_speed_mps`` on is
+        added, its sigma the fix velocity's and the antenna lever arm's gyro noise over the
+        speed."""
+        vel = fix.vel_ne_mps
+        speed = 0.0 if vel is None else math.hypot(*vel)
+        measured = self._gnss_velocity(fix)
+        if vel is None or measured is None or speed < self.cfg.cog_min_speed_mps:
+            return None
+        w_e, sig_lever = self._lever_rate(t_e, float(np.linalg.norm(self._l_ant_b)))
+        forward = self._forward_at(vel, row, w_e)
+        course = heading_from_antenna_course(vel, row[ROW_C], w_e, self._l_ant_b, forward)
+        sigma_v = math.hypot(measured[1], sig_lever)
+        self._courses.add(t_e, wrap_pi(course - yaw_e), sigma_v / speed)
+        if speed < self.cfg.align_min_speed_mps:
+            return None
+        bz_var = self._seed_var_g[2] if self._seed is not None else None
+        sig_bz = math.sqrt(bz_var) if bz_var is not None else self._levelled_gyro_bias_sigma_rps()
+        return self._courses.offset(sig_bz)
 
     def _forward_at(self, vel_ne_mps: tuple[float, float], row: Array, w_e: Array) -> bool:
         """Driving forward at ``row``, the antenna moving at ``vel_ne_mps``: as the heading

@@ -38,6 +38,7 @@ from gateway.estimation.attitude import (
     to_mat9,
 )
 from gateway.estimation.bias_change import BiasChange, TiltCorrections, bias_change_text
+from gateway.estimation.course_alignment import CourseAlignment
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.engine_base import (
     HeldEpochs,
@@ -79,7 +80,6 @@ from gateway.estimation.observer.accel_bias_filter import (
     TrackEpoch,
 )
 from gateway.estimation.observer.coast_budget import CoastBudget
-from gateway.estimation.observer.course_alignment import CourseAlignment
 from gateway.estimation.observer.ground_constraint import (
     GROUND_TILT_RAD,
     GroundPeriod,
