@@ -1349,10 +1349,16 @@ class ObserverEngine:
         assert obs is not None and flt is not None
         biases = filter_biases(obs)
         row, prow = rows
-        # the epoch interval's mean rate: one sample's noise is 0.5-1 deg/s of ARW, which
-        # beyond 2 deg/s once in 8 s kept the filter from starting on an IMU twice the
-        # datasheet's noise (its x bias never learnt: pitch 1.6 deg off, 0.46 stated)
-        if abs(self._mean_rate(prow[_T], row)[2]) >= self.cfg.align_quiet_rate_dps * DEG_TO_RAD:
+        # the mean rate over the loop's tau (at least the epoch interval): what turns the
+        # tilt of a bias error faster than the loop follows. One sample's noise is 0.5-1
+        # deg/s of ARW, which beyond 2 deg/s once in 8 s kept the filter from starting on
+        # an IMU twice the datasheet's noise (its x bias never learnt: pitch 1.6 deg off,
+        # 0.46 stated); an epoch's mean still caught the yaw a rough field's bumps rock
+        # the body by (+-4 deg/s at 6 m/s), and the filter never started (`short` seed
+        # 547 of fast-wide+rough-slope: roll 0.75 deg off all run, 3,681 frames beyond)
+        span_s = min(max(self._tilt_loop.tau_now_s, interval_s), row[_T] - self._hist[0][_T])
+        w_z = self._mean_rate(row[_T] - span_s, row)[2]
+        if abs(w_z) >= self.cfg.align_quiet_rate_dps * DEG_TO_RAD:
             self._turned_s = t_e
         if not flt.started:
             # It starts with the platform levelled on the biases (x = -C_h db): not in a
@@ -1973,7 +1979,10 @@ class ObserverEngine:
         if flt is not None and flt.started:
             return max(flt.sigma_mps2, ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale)
         bx0, by0, sigma0, a0 = self._ba_origin
-        left = math.exp(a0 - self._a_learn)
+        # with the filter configured, nothing learns them before it starts (eq. 12 is
+        # off): turns then took the sigma down with the exponent while the bias stayed
+        # (roll 0.75 deg off with 0.12 stated, the filter kept from starting on rough ground)
+        left = 1.0 if flt is not None else math.exp(a0 - self._a_learn)
         sigma = sigma0 * left
         obs = self._observer
         if obs is not None and 1.0 - left >= SHOWN_BIAS_MIN_LEARNT:
