@@ -1045,7 +1045,11 @@ class ObserverEngine:
         sigma_u = math.hypot(sigma, GRAVITY_MPS2 * self._sigma_tilt_rad(0.0) * since_s)
         p_ref = self._reference_ne_m(fix, c_e)
         sigma_p = self._fix_sigma_m(fix)[0]
-        if abs(u_ant) < DIRECTION_SIGMAS * sigma and sog < min(
+        # (the engine's velocity within its own error since the last epoch that gave one:
+        # after an outage at a stop it had drifted with the tilt, g theta t, beyond the
+        # fix's noise, and no epoch at the stop was still again, nor moving: the velocity
+        # never reset and the position ran off, 80 m in a minute, until the vehicle drove)
+        if abs(u_ant) < DIRECTION_SIGMAS * sigma_u and sog < min(
             cfg.stationary_speed_mps, DIRECTION_SIGMAS * sigma
         ):
             # the latest still epoch's: the stop's first may be the braking's last cm
