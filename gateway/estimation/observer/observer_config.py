@@ -93,7 +93,10 @@ class ObserverConfig:
 
     # --- heading channel (ALGORITHMS.md 2, seed 001) ---
     tau_heading_s: float = 2.0  # heading time constant of an epoch after a gap (no gain)
-    cog_min_speed_mps: float = 1.0  # course over ground is a heading reference above this
+    # course over ground is a heading reference above this (weighed by its sigma, 2 cm/s
+    # over the speed): the receiver's course hold speed (a 1 m/s crawl on the gyro alone
+    # drifted with the z bias's error, 1.7 deg off after a wander with 1 Hz fixes)
+    cog_min_speed_mps: float = 0.5
     reverse_detect_speed_mps: float = 0.3  # forward/reverse decided above this speed
     heading_gate_deg: float = 10.0  # larger heading residuals are rejected (glitch)
     heading_realign_s: float = 5.0  # after this long of rejected residuals, realign
