@@ -114,6 +114,22 @@ class NmeaPlayer(Closing):
             raise self._error
         return done
 
+    def wait_for_hangup(self, timeout_s: float) -> bool:
+        """Wait until no reader has the port open (the last one closed it: it has what it
+        wanted of the lines), at most ``timeout_s``; True if it did. Bytes the reader
+        writes meanwhile are discarded."""
+        hangup = select.poll()
+        hangup.register(self._master, select.POLLIN)  # (POLLHUP is always reported)
+        end = time.monotonic() + timeout_s
+        while (left_s := end - time.monotonic()) > 0.0:
+            for _, events in hangup.poll(min(left_s, POLL_S) * 1000.0):
+                if events & select.POLLHUP:
+                    return True
+                if events & select.POLLIN:
+                    with contextlib.suppress(OSError):
+                        os.read(self._master, 4096)
+        return False
+
     def stop(self) -> None:
         """Stop playing, close the pty and remove the symlink; safe to call twice."""
         self._stop.set()
@@ -216,13 +232,15 @@ def play_nmea_lines(
 ) -> PlayerStats:
     """Play lines onto a new pty and return when done (``on_ready`` gets the device path).
 
-    The pty stays open ``linger_s`` after the last line so that the reader gets it all.
+    The pty stays open after the last line until the reader closes it, at most ``linger_s``,
+    so that the reader gets it all. (A fixed 0.3 s was too short for a reader thread on a
+    loaded CI machine: the pty closed before it had read a line.)
     """
     with NmeaPlayer(lines, speed, link, detached) as player:
         if on_ready is not None:
             on_ready(player.device)
         player.wait()
-        time.sleep(linger_s)
+        player.wait_for_hangup(linger_s)
     return player.stats
 
 

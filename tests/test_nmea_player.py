@@ -106,7 +106,7 @@ def test_symlink_and_blocking_play_function(tmp_path: Path) -> None:
         readers.append(threading.Thread(target=read))
         readers[0].start()
 
-    stats = play_nmea_lines(lines, speed=float("inf"), link=link, on_ready=ready, linger_s=0.3)
+    stats = play_nmea_lines(lines, speed=float("inf"), link=link, on_ready=ready, linger_s=10.0)
     readers[0].join()
     assert got == [s for _, s in lines] and stats.sent == 20
     assert not link.exists()
