@@ -116,19 +116,14 @@ class NmeaPlayer(Closing):
 
     def wait_for_hangup(self, timeout_s: float) -> bool:
         """Wait until no reader has the port open (the last one closed it: it has what it
-        wanted of the lines), at most ``timeout_s``; True if it did. Bytes the reader
-        writes meanwhile are discarded."""
-        hangup = select.poll()
-        hangup.register(self._master, select.POLLIN)  # (POLLHUP is always reported)
+        wanted of the lines), at most ``timeout_s``; True if it did (:meth:`_events`, as
+        :meth:`_wait_for_reader` waits for the opposite)."""
         end = time.monotonic() + timeout_s
-        while (left_s := end - time.monotonic()) > 0.0:
-            for _, events in hangup.poll(min(left_s, POLL_S) * 1000.0):
-                if events & select.POLLHUP:
-                    return True
-                if events & select.POLLIN:
-                    with contextlib.suppress(OSError):
-                        os.read(self._master, 4096)
-        return False
+        while not self._events() & select.POLLHUP:
+            if time.monotonic() >= end:
+                return False
+            time.sleep(POLL_S)
+        return True
 
     def stop(self) -> None:
         """Stop playing, close the pty and remove the symlink; safe to call twice."""
