@@ -33,6 +33,7 @@ from tests.kinematics import (
     ORIGIN_LLA,
     Motion,
     Segment,
+    fed,
     gnss_stream,
     imu_stream,
     motion_time,
@@ -347,3 +348,39 @@ def test_an_outage_into_a_stop_leaves_the_vehicle_standing_where_it_stopped(
         ned = lla_to_ned(np.array([[sol.lat_deg, sol.lon_deg, 0.0]]), ORIGIN_LLA)[0]
         assert float(np.hypot(*(ned[:2] - stop_ne))) < 0.05, t
         assert abs(math.degrees(sol.yaw_rad - 1.0)) < 0.5, t
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF], ids=["observer", "ekf"])
+def test_an_epoch_without_a_position_does_not_end_the_coast(engine: Engine) -> None:
+    """The first epoch after a 15 s outage over a U-turn comes without its GGA (lost with
+    the outage's last line; its RMC and VTG through): a velocity, no position. Ending the
+    coast on it, both engines said NAVIGATING with the dead-reckoned position until the next
+    epoch (the observer 2.0 m off, `short` seed 5). Now the position coasts from the last
+    epoch that carried one: not NAVIGATING until the next GGA, NAVIGATING right after it."""
+    drive = Motion(
+        [Segment(30.0), Segment(math.pi / 0.3, yaw_rate_rps=0.3), Segment(30.0)],
+        v0_mps=3.0,
+        roll_rad=math.radians(3.0),
+        yaw0_rad=0.5,
+    )
+    lever = (0.5, 0.0, -3.0)
+    cfg = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=lever))
+    estimator = make_engine(cfg.with_engine(engine))
+    estimator.moving_before()
+    imu = imu_stream(drive, noise_g_rps=0.003, noise_a_mps2=0.02, seed=4)
+    fixes = [
+        f
+        for f in gnss_stream(drive, antenna_lever_arm_m=lever, vel_noise_mps=0.02)
+        if not 28.0 <= motion_time(f.t) < 43.0
+    ]
+    k = next(i for i, f in enumerate(fixes) if motion_time(f.t) >= 43.0)
+    fixes[k] = dataclasses.replace(fixes[k], alt_m=None, hdop=None, num_sats=None)
+    t_velocity, t_position = fixes[k].t, fixes[k + 1].t
+    between, after = [], []
+    for _, s in fed(estimator, imu, fixes):
+        if t_velocity <= s.t < t_position:
+            between.append(estimator.solution().mode)
+        elif t_position + 0.2 <= s.t < t_position + 2.0:
+            after.append(estimator.solution().mode)
+    assert between and Mode.NAVIGATING not in between, between
+    assert after and set(after) == {Mode.NAVIGATING}, after

@@ -201,31 +201,61 @@ def bolted_off(tmp_path_factory: pytest.TempPathFactory) -> SimRun:
 @pytest.mark.parametrize("engine", list(Engine))
 @pytest.mark.parametrize("configured", [TRUE_RPY, (0.0, 0.0, 0.0)], ids=["true", "unset"])
 def test_a_unit_bolted_off_and_not_configured_is_degraded_on_the_bus(
-    engine: Engine, configured: tuple[float, float, float], bolted_off: SimRun, tmp_path: Path
+    engine: Engine,
+    configured: tuple[float, float, float],
+    bolted_off: SimRun,
+    tmp_path: Path,
+    caplog: pytest.LogCaptureFixture,
 ) -> None:
     """``navgw replay`` of the drive, the attitude decoded by the independent ``nmea2000``
     package. With the mounting unset, pitch goes out off by the mounting (the EKF's 1.2 deg:
     its no-vertical-velocity constraint puts the rest into its x accelerometer bias) while
     the engines state tenths: from the check's verdict on (within 8 minutes), every
-    NAVGW_STATUS says DEGRADED, to the end. With the true mounting configured, none does."""
+    NAVGW_STATUS says DEGRADED, to the end. Before it, the heading's corrections in the
+    turns may show more than the heading states (DEGRADED for a second or two,
+    :mod:`gateway.estimation.bias_change`). With the true mounting configured there is no
+    verdict, and no DEGRADED spell of more than 2 s (one after a reverse at 1 m/s on the
+    slope, the heading 0.6 deg off with 0.14 stated: the courses of 18 s of reversing
+    averaged 0.3 deg off by their noise and the mast's sway)."""
     base = load_config(bolted_off.config_file).with_engine(engine)
     cfg = dataclasses.replace(
         base, vehicle=dataclasses.replace(base.vehicle, imu_mounting_rpy_deg=configured)
     )
     out = tmp_path / "out.log"
-    replay(bolted_off.imu_log, bolted_off.gnss_log, out, cfg)
+    with caplog.at_level(logging.WARNING, logger="gateway.fusion.mounting_check"):
+        replay(bolted_off.imu_log, bolted_off.gnss_log, out, cfg)
+    verdicts = [
+        r.getMessage() for r in caplog.records if "IMU mounting in effect" in r.getMessage()
+    ]
     truth = Truth.load(bolted_off.truth_file)
     modes = settled(status_modes(out))
-    degraded = [t for t, mode in modes if mode == DEGRADED]
     if configured == TRUE_RPY:
-        assert degraded == []
+        assert verdicts == []
+        spells = _degraded_spells(modes)
+        assert all(b - a < 2.0 for a, b in spells), spells
         return
-    assert degraded, "never degraded"
-    t_off = degraded[0]
+    assert len(verdicts) == 1, verdicts
+    t_off = float(verdicts[0].split(":")[0][2:])
     assert t_off - truth.t[0] < 480.0
-    assert all(mode == DEGRADED for t, mode in modes if t >= t_off)
+    assert all(mode == DEGRADED for t, mode in modes if t >= t_off + 0.2)
     errors = attitude_errors_deg(decode_log(out), truth, after_s=t_off - truth.t[0])
     assert np.median(np.abs(errors[:, 1])) > 1.0  # the pitch so excused was that far off
+
+
+def _degraded_spells(modes: list[tuple[float, int]]) -> list[tuple[float, float]]:
+    """(first, last) status times of each run of DEGRADED in ``modes``."""
+    runs: list[tuple[float, float]] = []
+    start = prev = None
+    for t, mode in modes:
+        if mode == DEGRADED and start is None:
+            start = t
+        elif mode != DEGRADED and start is not None:
+            runs.append((start, prev if prev is not None else start))
+            start = None
+        prev = t
+    if start is not None and prev is not None:
+        runs.append((start, prev))
+    return runs
 
 
 @pytest.fixture(scope="module")

@@ -1,4 +1,4 @@
-"""A change of the IMU's x/y biases beyond their in-run model, told by the tilt corrections.
+"""A change of the IMU's biases beyond their in-run model, told by the attitude corrections.
 
 Both engines model the in-run biases as the datasheet's slow wander (0.007 deg/s, 0.1 mg
 over 100 s). A step (a shock to the unit, a failing sensor) is far outside it, and the
@@ -7,24 +7,31 @@ b is taken into the tilt as b / g within seconds (nothing tells the two apart on
 straight), a gyro bias change b_g holds the tilt off by about b_g tau until it is learnt.
 `field` seed 3 with +20 mg on y at 300 s: roll 0.8-1.2 deg off with 0.07-0.09 stated for
 minutes (17,181 observer and 21,006 EKF frames beyond 0.1 deg + 3 stated sigma); with
-+0.2 deg/s on x, 0.4-0.7 deg off (1,456 and 521 frames).
++0.2 deg/s on x, 0.4-0.7 deg off (1,456 and 521 frames). A z gyro step holds the heading
+off by b_g times the heading loop's time constant, and an outage then runs it off at b_g:
++0.2 deg/s at 155 s of `short` seed 5, the heading 0.9-1.3 deg off with 0.06-0.14 stated
+on RTK, 3 deg off at the end of a 20 s outage (the observer NAVIGATING again with it, the
+EKF COASTING with 1.6-2.2 deg), the seed-001 filter and the EKF's P having learnt a third
+of it in 40 s.
 
 What does show is the platform being turned by the engine rather than by the gyro: over a
-window, the tilt corrections applied (the observer's control, the EKF's attitude error
-estimates) add up to the tilt change the model had to make. The model explains ARW
-sqrt(W), the gyro bias's sigma times W, and the tilt errors at the window's two ends (the
-largest stated in it, and the one stated now). Beyond ``K_EXCESS`` times that, the excess is
-in the stated tilt at once; beyond ``K_SIGMA`` times, the biases changed (or the tilt was off
-by more than stated, which is the same news). The engine then re-opens its x/y bias
-uncertainty, the accelerometer's as a tilt the platform took (the levelling's correlation)
-and the gyro's as the window's mean rate, so what it states covers the change until turns
-and stops have learnt the biases again. No change was found on any run of the accuracy
-benchmark (ten scenarios, seeds 1-3, both engines); on `field` seed 3 the largest 5 s sums
-were 0.29 deg (observer) and 0.27 deg (EKF), where the limit was 0.7-0.8 deg. The observer
-judges only while its learning gates are open (single-point velocities gave 1 deg in 5 s).
-A step while the biases are still being learnt keeps the sum at 3-4 sigma for seconds, the
-stated tilt being up with the learning: ``K_SUSTAINED`` for ``SUSTAINED_S`` is a change too
-(the observer's accel-bias filter also watches its own innovations,
+window, the corrections applied (the observer's control, the EKF's attitude error
+estimates) add up to the change of angle the model had to make, the tilt's (north and east)
+and the heading's each in a window of its own. The model explains ARW sqrt(W), the gyro
+bias's sigma times W, and the angle errors at the window's two ends (the largest stated in
+it, and the one stated now). Beyond ``K_EXCESS`` times that, the excess is in the stated
+angle at once; beyond ``K_SIGMA`` times, the biases changed (or the angle was off by more
+than stated, which is the same news). The engine then re-opens the biases behind it: for
+the tilt the x/y ones, the accelerometer's as a tilt the platform took (the levelling's
+correlation) and the gyro's as the window's mean rate; for the heading the z gyro's as that
+rate. What it states covers the change until turns, stops and courses have learnt the
+biases again. No change was found on any run of the accuracy benchmark (ten scenarios,
+seeds 1-3, both engines); on `field` seed 3 the largest 5 s sums were 0.29 deg (observer)
+and 0.27 deg (EKF), where the limit was 0.7-0.8 deg. The observer judges only while its
+learning gates are open (single-point velocities gave 1 deg in 5 s). A step while the
+biases are still being learnt keeps the sum at 3-4 sigma for seconds, the stated tilt being
+up with the learning: ``K_SUSTAINED`` for ``SUSTAINED_S`` is a change too (the observer's
+accel-bias filter also watches its own innovations,
 :meth:`gateway.estimation.observer.accel_bias_filter.AccelBiasFilter.inconsistent`).
 """
 
@@ -64,88 +71,119 @@ K_EXCESS = 2.0
 
 @dataclass(frozen=True)
 class BiasChange:
-    """What the window showed: the tilt the engine had to apply beyond its gyro, rad, and
-    that as a mean rate over the window, rad/s."""
+    """What the window showed: the angle the engine had to turn its platform by beyond its
+    gyro, rad, and that as a mean rate over the window, rad/s."""
 
-    tilt_rad: float
+    axis: str  # "tilt" or "heading": the window's (CorrectionWindow.axis)
+    angle_rad: float
     rate_rps: float
     again: bool  # within REOPEN_HOLD_S of the last: logged, the biases not re-opened
 
 
-class TiltCorrections:
-    """The tilt corrections an engine applied (NED north and east axes, rad) over the last
-    :data:`WINDOW_S`, judged against what its noise and bias model explain. Per correction
-    O(1): running sums, and the window's largest stated sigma by a monotonic queue."""
+class _WindowMax:
+    """The largest value pushed within a sliding window: a monotonic queue, O(1) a push."""
 
-    def __init__(self, window_s: float = WINDOW_S) -> None:
+    def __init__(self) -> None:
+        self._q: deque[tuple[float, float]] = deque()  # (t, value), value decreasing
+
+    def push(self, t_s: float, value: float, t_old_s: float) -> None:
+        """``value`` at ``t_s``; those at or before ``t_old_s`` leave the window."""
+        q = self._q
+        while q and q[-1][1] <= value:
+            q.pop()
+        q.append((t_s, value))
+        while q[0][0] <= t_old_s:
+            q.popleft()
+
+    def clear(self) -> None:
+        self._q.clear()
+
+    @property
+    def value(self) -> float:
+        """The window's largest value (0 if empty)."""
+        return self._q[0][1] if self._q else 0.0
+
+
+class CorrectionWindow:
+    """The corrections an engine applied to one angle over the last :data:`WINDOW_S`, rad,
+    judged against what its noise and bias model explain: the tilt's (NED north and east
+    axes) or the heading's (its one axis, east 0). Per correction O(1): running sums, and
+    the window's largest stated sigmas by monotonic queues."""
+
+    def __init__(self, axis: str, window_s: float = WINDOW_S) -> None:
+        self.axis = axis  # "tilt" or "heading", for the log
         self.window_s = window_s
         self._recent: deque[tuple[float, float, float]] = deque()
-        self._sigmas: deque[tuple[float, float]] = deque()  # (t, sigma), sigma decreasing
+        self._sigma_angle = _WindowMax()  # the angle's 1-sigma stated in the window
+        self._sigma_bg = _WindowMax()  # the gyro bias's
         self._sum_n = self._sum_e = 0.0
-        self.tilt_rad = 0.0  # the window's sum, horizontal magnitude
+        self.angle_rad = 0.0  # the window's sum, magnitude
         self._t_change_s = -math.inf  # the last change that re-opened the biases
         self._above_since_s: float | None = None  # beyond K_SUSTAINED since then
 
-    def add(self, t_s: float, d_n_rad: float, d_e_rad: float, sigma_tilt_rad: float) -> None:
-        """A correction applied at ``t_s`` with the tilt 1-sigma stated before it; those
-        older than the window are dropped."""
-        recent, sigmas = self._recent, self._sigmas
+    def add(
+        self,
+        t_s: float,
+        d_n_rad: float,
+        d_e_rad: float,
+        sigma_angle_rad: float,
+        sigma_bg_rps: float,
+    ) -> None:
+        """A correction applied at ``t_s`` with the angle's and the gyro bias's 1-sigmas
+        stated before it; those older than the window are dropped."""
+        recent = self._recent
         recent.append((t_s, d_n_rad, d_e_rad))
         self._sum_n += d_n_rad
         self._sum_e += d_e_rad
-        while sigmas and sigmas[-1][1] <= sigma_tilt_rad:
-            sigmas.pop()
-        sigmas.append((t_s, sigma_tilt_rad))
         t_old = t_s - self.window_s
         while recent[0][0] <= t_old:
             _, n, e = recent.popleft()
             self._sum_n -= n
             self._sum_e -= e
-        while sigmas[0][0] <= t_old:
-            sigmas.popleft()
-        self.tilt_rad = math.hypot(self._sum_n, self._sum_e)
+        self._sigma_angle.push(t_s, sigma_angle_rad, t_old)
+        self._sigma_bg.push(t_s, sigma_bg_rps, t_old)
+        self.angle_rad = math.hypot(self._sum_n, self._sum_e)
 
     def clear(self) -> None:
         """Forget the window (its corrections are no evidence: the learning gates closed)."""
         self._recent.clear()
-        self._sigmas.clear()
-        self._sum_n = self._sum_e = self.tilt_rad = 0.0
+        self._sigma_angle.clear()
+        self._sigma_bg.clear()
+        self._sum_n = self._sum_e = self.angle_rad = 0.0
         self._above_since_s = None
 
-    def explained_rad(
-        self, arw_rad_per_sqrt_s: float, sigma_bg_rps: float, sigma_tilt_rad: float
-    ) -> float:
-        """1-sigma of the sum the model explains: the gyro's ARW over the window, the x/y
-        gyro bias 1-sigma times it, the tilt errors at its start (the largest stated in it:
-        an outage's drift is corrected after it) and now (``sigma_tilt_rad``)."""
+    def explained_rad(self, arw_rad_per_sqrt_s: float, sigma_angle_rad: float) -> float:
+        """1-sigma of the sum the model explains: the gyro's ARW over the window, the gyro
+        bias 1-sigma times it (the largest stated with its corrections: they made up for the
+        bias as it was known then, and a first bias update takes the sigma from the turn-on
+        spread to hundredths at once), the angle's errors at its start (the largest stated in
+        it: an outage's drift is corrected after it) and now (``sigma_angle_rad``)."""
         w = self.window_s
-        sigma_start = self._sigmas[0][1] if self._sigmas else 0.0
         return math.sqrt(
-            arw_rad_per_sqrt_s**2 * w + (sigma_bg_rps * w) ** 2 + sigma_start**2 + sigma_tilt_rad**2
+            arw_rad_per_sqrt_s**2 * w
+            + (self._sigma_bg.value * w) ** 2
+            + self._sigma_angle.value**2
+            + sigma_angle_rad**2
         )
 
-    def excess_rad(
-        self, arw_rad_per_sqrt_s: float, sigma_bg_rps: float, sigma_tilt_rad: float
-    ) -> float:
+    def excess_rad(self, arw_rad_per_sqrt_s: float, sigma_angle_rad: float) -> float:
         """What of the sum is beyond ``K_EXCESS`` times :meth:`explained_rad`, rad (0 within;
-        first against ``sigma_tilt_rad`` alone, which it is at least, as most calls end there)."""
-        tilt = self.tilt_rad
-        if tilt <= K_EXCESS * sigma_tilt_rad:
+        first against ``sigma_angle_rad`` alone, which it is at least, as most calls end there)."""
+        angle = self.angle_rad
+        if angle <= K_EXCESS * sigma_angle_rad:
             return 0.0
-        knee = K_EXCESS * self.explained_rad(arw_rad_per_sqrt_s, sigma_bg_rps, sigma_tilt_rad)
-        return math.sqrt(tilt * tilt - knee * knee) if tilt > knee else 0.0
+        knee = K_EXCESS * self.explained_rad(arw_rad_per_sqrt_s, sigma_angle_rad)
+        return math.sqrt(angle * angle - knee * knee) if angle > knee else 0.0
 
-    def check(
-        self, arw_rad_per_sqrt_s: float, sigma_bg_rps: float, sigma_tilt_rad: float
-    ) -> BiasChange | None:
+    def check(self, arw_rad_per_sqrt_s: float, sigma_angle_rad: float) -> BiasChange | None:
         """The window's sum if beyond ``K_SIGMA`` times :meth:`explained_rad`, or beyond
         ``K_SUSTAINED`` times it for ``SUSTAINED_S``; the window is then cleared (the next one
         starts after the change)."""
-        tilt = self.tilt_rad
-        if tilt <= K_SUSTAINED * sigma_tilt_rad:
+        angle = self.angle_rad
+        if angle <= K_SUSTAINED * sigma_angle_rad:
             self._above_since_s = None
             return None
-        ratio = tilt / self.explained_rad(arw_rad_per_sqrt_s, sigma_bg_rps, sigma_tilt_rad)
+        ratio = angle / self.explained_rad(arw_rad_per_sqrt_s, sigma_angle_rad)
         t_s = self._recent[-1][0]
         if ratio <= K_SUSTAINED:
             self._above_since_s = None
@@ -158,25 +196,36 @@ class TiltCorrections:
         if not again:
             self._t_change_s = t_s
         self.clear()
-        return BiasChange(tilt, tilt / self.window_s, again)
+        return BiasChange(self.axis, angle, angle / self.window_s, again)
 
 
-def bias_change_text(
-    t_s: float, change: BiasChange, sigma_a_mps2: float, sigma_g_rps: float
-) -> str:
-    """The log line of a change (both engines)."""
+def bias_change_text(t_s: float, change: BiasChange, reopened: str) -> str:
+    """The log line of a change (both engines, both windows); ``reopened`` says what the
+    engine re-opened, unless the change came ``again``."""
     seen = (
-        f"IMU bias change at t={t_s:.3f}: the tilt took {math.degrees(change.tilt_rad):.2f} deg "
-        f"of correction in {WINDOW_S:g} s, beyond what the IMU's noise and its learnt biases "
-        "explain; "
+        f"IMU bias change at t={t_s:.3f}: the {change.axis} took "
+        f"{math.degrees(change.angle_rad):.2f} deg of correction in {WINDOW_S:g} s, beyond "
+        "what the IMU's noise and its learnt biases explain; "
     )
     if change.again:
         return seen + (
             f"again within {REOPEN_HOLD_S:g} s of the last, so not re-opened: is the IMU "
             "mounting the config's (navgw calibrate), is the IMU as quiet as [imu] says?"
         )
-    return seen + (
-        f"x/y biases re-opened to {sigma_a_mps2:.3f} m/s^2 and {math.degrees(sigma_g_rps):.3f} "
-        "deg/s 1-sigma, the roll/pitch accuracy sent with them, and learnt again in the next "
-        "turns and stops"
+    return seen + f"{reopened}, and learnt again in the next turns, stops and courses"
+
+
+def xy_reopened_text(sigma_a_mps2: float, sigma_g_rps: float) -> str:
+    """What a tilt change re-opened, for :func:`bias_change_text`."""
+    return (
+        f"x/y biases re-opened to {sigma_a_mps2:.3f} m/s^2 and "
+        f"{math.degrees(sigma_g_rps):.3f} deg/s 1-sigma, the roll/pitch accuracy sent with them"
+    )
+
+
+def z_reopened_text(sigma_g_rps: float) -> str:
+    """What a heading change re-opened, for :func:`bias_change_text`."""
+    return (
+        f"z gyro bias re-opened to {math.degrees(sigma_g_rps):.3f} deg/s 1-sigma, the "
+        "heading's accuracy with it"
     )

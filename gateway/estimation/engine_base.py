@@ -32,6 +32,21 @@ class CoastLimits(Protocol):
     def max_coast_sigma_m(self) -> float: ...
 
 
+def gap_beyond_s(t_s: float | None, t_rx_s: float | None, timeout_s: float) -> float:
+    """Time at ``t_s`` since the receive time ``t_rx_s`` if beyond ``timeout_s``, else 0
+    (also before any): how long an engine has been coasting on what ``t_rx_s`` stamps.
+
+    Both engines coast the position from the last epoch that carried one, whatever
+    velocities came since. The first epoch after an outage may carry a velocity and no
+    position (the GGA lost with the outage, its RMC and VTG through): ending the coast on
+    it, the observer sent its dead reckoning 2.0 m off, NAVIGATING, until the next epoch
+    (`short` seed 5, a 20 s outage over a headland turn)."""
+    if t_s is None or t_rx_s is None:
+        return 0.0
+    gap = t_s - t_rx_s
+    return gap if gap > timeout_s else 0.0
+
+
 def dead_reckoning_output(
     coasting_s: float, sigma_h_m: float, limits: CoastLimits
 ) -> tuple[bool, bool]:

@@ -61,7 +61,13 @@ from gateway.estimation.attitude import (
     skew,
     to_mat9,
 )
-from gateway.estimation.bias_change import BiasChange, TiltCorrections, bias_change_text
+from gateway.estimation.bias_change import (
+    BiasChange,
+    CorrectionWindow,
+    bias_change_text,
+    xy_reopened_text,
+    z_reopened_text,
+)
 from gateway.estimation.chassis import CHASSIS_PITCH_SIGMA_RAD
 from gateway.estimation.course_alignment import CourseAlignment
 from gateway.estimation.ekf.ekf_config import EkfConfig, EkfTuning
@@ -83,7 +89,7 @@ from gateway.estimation.ekf.error_state import (
     fuse_position,
     fuse_velocity,
     fuse_zero_rate,
-    heading_row,
+    heading_weights,
     predict,
     process_noise_psd,
     set_symmetrised,
@@ -96,6 +102,7 @@ from gateway.estimation.engine_base import (
     common_fields,
     dead_reckoning_output,
     fix_fields,
+    gap_beyond_s,
     levelling_correction,
 )
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
@@ -182,7 +189,8 @@ class EkfEngine:
         self.cfg = cfg
         self.counters = EkfCounters()
         self._log = LogLimiter(log)
-        self._corrections = TiltCorrections()  # recent attitude corrections: a bias change?
+        self._corrections = CorrectionWindow("tilt")  # recent attitude corrections: a bias change?
+        self._heading_corrections = CorrectionWindow("heading")  # the same for the z bias
         self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._last_vel: tuple[float, tuple[float, float]] | None = None
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
@@ -238,6 +246,7 @@ class EkfEngine:
         self._t_velocity_rejected_s: float | None = None
         self._t_accepted_rx_s: float | None = None  # receive time of the last accepted fix
         self._t_pos_epoch_s: float | None = None  # epoch of the last accepted position
+        self._t_pos_rx_s: float | None = None  # receive time of the last fix with a position
         self._track = GnssTrack()  # the receiver's own track: glitch or filter off?
         self._courses = CourseAlignment(self.cfg.heading_gate_deg * DEG_TO_RAD)  # 1st heading
         self._t_nhc_s = -math.inf
@@ -565,6 +574,7 @@ class EkfEngine:
         self._last_quality = fix.quality
         p_ant = self._antenna_ned(fix) if sig_pos is not None else None
         if p_ant is not None and sig_pos is not None:
+            self._t_pos_rx_s = fix.t
             p_ne = (float(p_ant[0]), float(p_ant[1]))
             self._track.add(
                 t_e, p_ne, fix.vel_ne_mps, fix.horizontal_sigma_m, float(p_ant[2]),
@@ -732,7 +742,17 @@ class EkfEngine:
         same error again: 8 m of error with epochs 4 s late in 2 s bursts, 0.x m with it.
         """
         assert self._ins is not None and self._hist is not None and self._t_s is not None
-        self._corrections.add(t_e, float(dx[6]), float(dx[7]), self._p_tilt_sigma_rad())
+        p = self._p
+        assert p is not None
+        var_bg = max(p.item(BG.start, BG.start), p.item(BG.start + 1, BG.start + 1))
+        self._corrections.add(
+            t_e, float(dx[6]), float(dx[7]), self._p_tilt_sigma_rad(), math.sqrt(var_bg)
+        )
+        h_n, h_e = self._heading_weights()
+        d_psi = h_n * float(dx[6]) + h_e * float(dx[7]) + float(dx[8])
+        self._heading_corrections.add(
+            t_e, d_psi, 0.0, self._p_heading_sigma_rad(), self._vertical_bias_sigma_rps()
+        )
         rot = self._ins.inject(dx, max(0.0, self._t_s - t_e))
         self._hist.shift(dx[POS], dx[VEL], rot, t_e)
         self._fix_err_ned_m += dx[FIX]
@@ -817,10 +837,36 @@ class EkfEngine:
 
     def _watch_corrections(self, t_e: float) -> None:
         """After an epoch's correction: beyond what the noise and P's gyro bias and tilt
-        explain (:class:`TiltCorrections`), the biases changed."""
-        change = self._corrections.check(*self._correction_sigmas())
+        (heading) explain (:class:`CorrectionWindow`), the x/y (z) biases changed."""
+        change = self._corrections.check(self._arw(), self._p_tilt_sigma_rad())
         if change is not None:
             self._bias_changed(t_e, change)
+        change = self._heading_corrections.check(self._arw(), self._p_heading_sigma_rad())
+        if change is not None:
+            self._z_bias_changed(t_e, change)
+
+    def _z_bias_changed(self, t_e: float, change: BiasChange) -> None:
+        """The z gyro bias changed beyond its in-run model (:mod:`gateway.estimation.
+        bias_change`): P's gyro bias about the vertical re-opens by the window's rate, the
+        heading by the angle taken with the IMU position error it makes through the lever
+        arm, the antenna being where the fixes say (as :meth:`_bias_changed` for the tilt)."""
+        if change.again:
+            self._log.warning(t_e, bias_change_text(t_e, change, ""), "bias change")
+            return
+        p, ins = self._p, self._ins
+        assert p is not None and ins is not None
+        c_bn = ins.c_bn
+        u = c_bn[2]  # the vertical in body axes
+        p[BG, BG] += change.rate_rps**2 * np.outer(u, u)
+        j = np.zeros(N_STATES)
+        j[ATT.stop - 1] = 1.0
+        j[POS] = skew(c_bn @ self._l_imu_ant_b) @ j[ATT]
+        p += change.angle_rad**2 * np.outer(j, j)
+        self.counters.bias_changes += 1
+        sigma_bz = self._vertical_bias_sigma_rps()
+        self._log.warning(
+            t_e, bias_change_text(t_e, change, z_reopened_text(sigma_bz)), "bias change"
+        )
 
     def _bias_changed(self, t_e: float, change: BiasChange) -> None:
         """The x/y biases changed beyond their in-run model (:mod:`gateway.estimation.
@@ -835,7 +881,7 @@ class EkfEngine:
         0.14 m/s^2 off with 0.03 stated, 600 frames beyond). The unobserved-bias share of
         the stated tilt (:meth:`_unobserved_bias_var`) comes back with it."""
         if change.again:
-            self._log.warning(t_e, bias_change_text(t_e, change, 0.0, 0.0), "bias change")
+            self._log.warning(t_e, bias_change_text(t_e, change, ""), "bias change")
             return
         p, ins = self._p, self._ins
         assert p is not None and ins is not None
@@ -843,7 +889,7 @@ class EkfEngine:
         j = np.zeros((N_STATES, 2))  # tilt and IMU position error per unit x/y bias change
         j[ATT] = _tilt_of_accel_bias(c_bn)[:, :2]
         j[POS] = skew(c_bn @ self._l_imu_ant_b) @ j[ATT]
-        sigma_a, sigma_g = GRAVITY_MPS2 * change.tilt_rad, change.rate_rps
+        sigma_a, sigma_g = GRAVITY_MPS2 * change.angle_rad, change.rate_rps
         p += sigma_a * sigma_a * (j @ j.T)
         for i in (BA.start, BA.start + 1):
             p[i, i] += sigma_a * sigma_a
@@ -852,7 +898,9 @@ class EkfEngine:
         self.counters.bias_changes += 1
         sigma_ba = math.sqrt(max(p.item(BA.start, BA.start), p.item(BA.start + 1, BA.start + 1)))
         sigma_bg = math.sqrt(max(p.item(BG.start, BG.start), p.item(BG.start + 1, BG.start + 1)))
-        self._log.warning(t_e, bias_change_text(t_e, change, sigma_ba, sigma_bg), "bias change")
+        self._log.warning(
+            t_e, bias_change_text(t_e, change, xy_reopened_text(sigma_ba, sigma_bg)), "bias change"
+        )
 
     def _noise_as_measured(self, tun: EkfTuning) -> EkfTuning:
         """The white rate and acceleration noise the IMU showed at rest, where it is more
@@ -944,7 +992,7 @@ class EkfEngine:
         mounting_var = (self.cfg.imu_mounting_sigma_deg * DEG_TO_RAD) ** 2
         if p is not None:
             model = self._p_tilt_sigma_rad()
-            excess = self._corrections.excess_rad(*self._correction_sigmas(model))
+            excess = self._corrections.excess_rad(self._arw(), model)
             return math.sqrt(model * model + excess * excess + mounting_var)
         if self._ins is None or tun is None or self._t_s is None:
             return None
@@ -970,17 +1018,6 @@ class EkfEngine:
         var_ba = max(p.item(bx, bx), p.item(by, by))
         unobserved = self._unobserved_bias_var(var_ba) / GRAVITY_MPS2**2
         return math.sqrt(max(worse + unobserved, step * step))
-
-    def _correction_sigmas(self, sigma_tilt_rad: float | None = None) -> tuple[float, float, float]:
-        """What :class:`TiltCorrections` weighs the tilt corrections with: the gyro's white
-        noise, P's x/y gyro bias 1-sigma and the filter's tilt 1-sigma (``sigma_tilt_rad``
-        if given)."""
-        p, tun = self._p, self._tuning
-        assert p is not None and tun is not None
-        var_bg = max(p.item(BG.start, BG.start), p.item(BG.start + 1, BG.start + 1))
-        if sigma_tilt_rad is None:
-            sigma_tilt_rad = self._p_tilt_sigma_rad()
-        return math.sqrt(tun.q_gyro_rad2_per_s), math.sqrt(var_bg), sigma_tilt_rad
 
     def _unobserved_bias_var(self, var_ba: float) -> float:
         """Variance, (m/s^2)^2, of a turn-on accelerometer bias beyond P0's (``[ekf]
@@ -1322,11 +1359,13 @@ class EkfEngine:
         )
 
     def _coasting_s(self) -> float:
-        """Time without an accepted fix beyond ``gnss_timeout_s`` counts as coasting, else 0."""
-        if self._t_s is None or self._t_accepted_rx_s is None:
-            return 0.0
-        gap = self._t_s - self._t_accepted_rx_s
-        return gap if gap > self.cfg.gnss_timeout_s else 0.0
+        """Time without an accepted fix, or without a position (:func:`gap_beyond_s`),
+        beyond ``gnss_timeout_s`` counts as coasting, else 0."""
+        timeout = self.cfg.gnss_timeout_s
+        return max(
+            gap_beyond_s(self._t_s, self._t_accepted_rx_s, timeout),
+            gap_beyond_s(self._t_s, self._t_pos_rx_s, timeout),
+        )
 
     def _dead_reckoning_output(self, coasting_s: float) -> tuple[bool, bool]:
         """(position sent, within COASTING's accuracy): :func:`dead_reckoning_output` with the
@@ -1354,11 +1393,54 @@ class EkfEngine:
         )
 
     def _heading_sigma_rad(self) -> float:
-        """The heading's 1-sigma from P (:func:`heading_row`), rad; pi before P."""
+        """The heading's 1-sigma, rad: P's (:meth:`_p_heading_sigma_rad`) with what the
+        recent heading corrections show beyond it (:meth:`CorrectionWindow.excess_rad`); pi
+        before P."""
         if self._p is None or self._ins is None:
             return math.pi
-        h = heading_row(self._ins.c_bn)[0, ATT]
-        return math.sqrt(max(float(h @ self._p[ATT, ATT] @ h), 0.0))
+        model = self._p_heading_sigma_rad()
+        excess = self._heading_corrections.excess_rad(self._arw(), model)
+        return math.sqrt(model * model + excess * excess)
+
+    def _heading_weights(self) -> tuple[float, float]:
+        """:func:`heading_weights` of the INS's attitude."""
+        assert self._ins is not None
+        c = self._ins.c_bn9
+        return heading_weights(c[0], c[3], c[6])
+
+    def _p_heading_sigma_rad(self) -> float:
+        """The heading's 1-sigma from P (:func:`heading_weights`), rad."""
+        p = self._p
+        assert p is not None
+        h_n, h_e = self._heading_weights()
+        var = _quadratic_form(p, ATT.start, (h_n, h_e, 1.0))
+        return math.sqrt(max(var, 0.0))
+
+    def _vertical_bias_sigma_rps(self) -> float:
+        """P's gyro bias 1-sigma about the vertical (what turns the heading), rad/s."""
+        p, ins = self._p, self._ins
+        assert p is not None and ins is not None
+        c = ins.c_bn9
+        return math.sqrt(max(_quadratic_form(p, BG.start, (c[6], c[7], c[8])), 0.0))
+
+    def _arw(self) -> float:
+        """The gyro's white rate noise (as measured at rest, if more), rad/sqrt(s): what
+        :class:`CorrectionWindow` weighs the corrections with."""
+        tun = self._tuning
+        assert tun is not None
+        return math.sqrt(tun.q_gyro_rad2_per_s)
+
+
+def _quadratic_form(p: Array, i0: int, u: tuple[float, float, float]) -> float:
+    """u' P[i0:i0+3, i0:i0+3] u in plain floats (a 3-vector's variance, per solution)."""
+    a, b, c = u
+    return (
+        a * a * p.item(i0, i0)
+        + b * b * p.item(i0 + 1, i0 + 1)
+        + c * c * p.item(i0 + 2, i0 + 2)
+        + 2.0
+        * (a * b * p.item(i0, i0 + 1) + a * c * p.item(i0, i0 + 2) + b * c * p.item(i0 + 1, i0 + 2))
+    )
 
 
 def _tilt_of_accel_bias(c_bn: Array) -> Array:

@@ -498,13 +498,19 @@ def fuse_nonholonomic(
     )
 
 
-def heading_row(c_bn: Array) -> Array:
-    """H (1, N_STATES) of the true heading yaw = atan2(C10, C00) (body x's azimuth):
-    d(yaw) = phi_D - C20 (C00 phi_N + C10 phi_E) / (C00^2 + C10^2)."""
-    c00, c10, c20 = float(c_bn[0, 0]), float(c_bn[1, 0]), float(c_bn[2, 0])
+def heading_weights(c00: float, c10: float, c20: float) -> tuple[float, float]:
+    """(h_N, h_E) of the true heading yaw = atan2(C10, C00) (body x's azimuth) against the
+    attitude error: d(yaw) = phi_D + h_N phi_N + h_E phi_E, h = -C20 (C00, C10) / (C00^2 +
+    C10^2). Plain floats: the engine takes it per epoch and per solution."""
     d = c00 * c00 + c10 * c10
+    return -c20 * c00 / d, -c20 * c10 / d
+
+
+def heading_row(c_bn: Array) -> Array:
+    """H (1, N_STATES) of the true heading (:func:`heading_weights`)."""
     h = np.zeros((1, N_STATES))
-    h[0, ATT] = (-c20 * c00 / d, -c20 * c10 / d, 1.0)
+    h_n, h_e = heading_weights(float(c_bn[0, 0]), float(c_bn[1, 0]), float(c_bn[2, 0]))
+    h[0, ATT] = (h_n, h_e, 1.0)
     return h
 
 

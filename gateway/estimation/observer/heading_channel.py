@@ -37,6 +37,14 @@ datasheet's) it trailed the wandering bias in a run, 2-3 times as far off as the
 60 s outage. At rest the mean bias-corrected z rate over a window is a direct observation
 of the residual bias (zero-rate update, :meth:`HeadingChannel.observe_zero_rate`), with
 variance ARW^2 / T.
+
+A step of the z bias (a shock to the unit) is far beyond that wander, and the filter, its
+sigma at the wander's 8 mdeg/s, took a third of +0.2 deg/s in 40 s while the heading stated
+0.06-0.14 deg stood 0.9-1.3 deg off (`short` seed 5). The heading corrections the channel
+applies over 5 s are watched as the tilt's are (:mod:`gateway.estimation.bias_change`):
+beyond what the ARW, the bias's sigma and the stated heading at both ends explain, the
+excess is in the stated heading, and a change re-opens the bias to the window's rate and
+restarts its interval, so the next interval's drift is all after the change.
 """
 
 from __future__ import annotations
@@ -46,6 +54,7 @@ from dataclasses import dataclass, field
 from enum import Enum
 
 from drivers.units import DEG_TO_RAD, SQRT_SECONDS_PER_HOUR, wrap_pi
+from gateway.estimation.bias_change import BiasChange, CorrectionWindow
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.line_fit import LineSums
 from gateway.estimation.observer.observer_config import ObserverConfig
@@ -81,10 +90,12 @@ class HeadingReference:
 
 @dataclass(frozen=True, slots=True)
 class HeadingCorrection:
-    """What the observer applies: vertical control rate (rad/s) and a direct yaw step (rad)."""
+    """What the observer applies: vertical control rate (rad/s) and a direct yaw step (rad);
+    and a z bias change the corrections showed (for the log), if any."""
 
     w_pz_rps: float = 0.0
     step_rad: float = 0.0
+    change: BiasChange | None = None
 
 
 class GyroZBiasKf:
@@ -158,6 +169,7 @@ class HeadingChannel:
         self._t_last_s: float | None = None  # previous correction epoch
         self._p_psi_rad2 = math.pi**2  # heading error variance (unknown until aligned)
         self._p_rest_rad2 = math.pi**2  # the same at the start of the window at rest
+        self._corrections = CorrectionWindow("heading")  # recent control: a z bias change?
 
     # ------------------------------------------------------------------ reference choice
 
@@ -265,13 +277,45 @@ class HeadingChannel:
                 return HeadingCorrection(step_rad=-r)
             return HeadingCorrection()
         self._rejected_since_s = None
+        sigma_bz_rps = self.kf.sigma_rps
         if learn:
             self._observe_bias(t_s, r, hc_rad, ref, c22)
         else:
             self._window = None
         if not 0.0 < interval_s <= self.cfg.max_gnss_interval_s:
+            self._corrections.clear()  # applied over a period not known yet
             return HeadingCorrection(w_pz_rps=r / self.cfg.tau_heading_s)
-        return HeadingCorrection(w_pz_rps=r * self._gain(ref.sigma_rad) / interval_s)
+        sigma_rad = self.sigma_psi_rad
+        step_rad = r * self._gain(ref.sigma_rad)
+        change = self._watch_corrections(t_s, step_rad, sigma_rad, sigma_bz_rps, c22, learn)
+        return HeadingCorrection(w_pz_rps=step_rad / interval_s, change=change)
+
+    def _watch_corrections(
+        self,
+        t_s: float,
+        step_rad: float,
+        sigma_rad: float,
+        sigma_bz_rps: float,
+        c22: float,
+        learn: bool,
+    ) -> BiasChange | None:
+        """The correction ``step_rad`` of the heading stated at ``sigma_rad``, its z bias at
+        ``sigma_bz_rps`` (before this epoch's bias update), into the window
+        (while the gates are open: a fix not good enough to learn from is no evidence); on
+        a change (:mod:`gateway.estimation.bias_change`), the z bias re-opens to the window's
+        rate (about the vertical, so over ``c22`` for body z) and its interval restarts; the
+        heading's variance takes the angle turned."""
+        if not learn:
+            self._corrections.clear()
+            return None
+        window = self._corrections
+        window.add(t_s, step_rad, 0.0, sigma_rad, sigma_bz_rps)
+        change = window.check(self._arw, self.sigma_psi_rad)
+        if change is not None and not change.again:
+            self.kf.p_rps2 = max(self.kf.p_rps2, (change.rate_rps / c22) ** 2)
+            self._p_psi_rad2 = max(self._p_psi_rad2, change.angle_rad**2)
+            self._window = None
+        return change
 
     def _gain(self, sigma_ref_rad: float) -> float:
         """Kalman gain of one heading reference (module docstring); updates the variance."""
@@ -286,9 +330,13 @@ class HeadingChannel:
 
     def sigma_psi_at(self, t_s: float) -> float:
         """Heading 1-sigma at ``t_s``: the last epoch's grown over the time since, rad (an
-        outage's heading is as uncertain as the gyro made it, not as the last fix left it)."""
+        outage's heading is as uncertain as the gyro made it, not as the last fix left it),
+        with what the recent corrections show beyond it
+        (:meth:`~gateway.estimation.bias_change.CorrectionWindow.excess_rad`)."""
         gap_s = 0.0 if self._t_last_s is None else max(t_s - self._t_last_s, 0.0)
-        return math.sqrt(self._p_psi_rad2 + self._heading_growth_rad2(gap_s))
+        var = self._p_psi_rad2 + self._heading_growth_rad2(gap_s)
+        excess = self._corrections.excess_rad(self._arw, math.sqrt(var))
+        return math.sqrt(var + excess * excess)
 
     def _heading_growth_rad2(self, gap_s: float) -> float:
         """Heading error variance added over ``gap_s`` without a reference: ARW^2 gap +
@@ -309,8 +357,10 @@ class HeadingChannel:
 
     def aligned(self, sigma_rad: float) -> None:
         """Heading was just set directly (alignment, realignment) to a reference of
-        ``sigma_rad``: restart the bias interval and the heading variance."""
+        ``sigma_rad``: restart the bias interval, the corrections' window and the heading
+        variance."""
         self._window = None
+        self._corrections.clear()
         self._p_psi_rad2 = sigma_rad**2
 
     def set_noise(self, arw_rps_per_sqrt_s: float, scale: float) -> None:

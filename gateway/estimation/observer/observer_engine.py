@@ -37,7 +37,13 @@ from gateway.estimation.attitude import (
     rpy_from_mat9,
     to_mat9,
 )
-from gateway.estimation.bias_change import BiasChange, TiltCorrections, bias_change_text
+from gateway.estimation.bias_change import (
+    BiasChange,
+    CorrectionWindow,
+    bias_change_text,
+    xy_reopened_text,
+    z_reopened_text,
+)
 from gateway.estimation.course_alignment import CourseAlignment
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.engine_base import (
@@ -46,6 +52,7 @@ from gateway.estimation.engine_base import (
     common_fields,
     dead_reckoning_output,
     fix_fields,
+    gap_beyond_s,
     levelling_correction,
     seeded_exponent,
 )
@@ -257,6 +264,7 @@ class ObserverEngine:
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
         self._t_vel_rx_s: float | None = None  # receive time of the last usable velocity
+        self._t_pos_rx_s: float | None = None  # receive time of the last fix with a position
         self._prev_epoch: tuple[float, float, float, _Row] | None = None  # t, vN, vE at IMU
         self._stationary = False  # at rest and not turning (status bit, zero-rate update)
         self._at_rest = False  # reference point not moving (turning on the spot allowed)
@@ -292,7 +300,9 @@ class ObserverEngine:
         self._control_from_s = 0.0  # IMU time they began
         self._control_period_s = 0.0  # the epoch period they are meant for
         self._rejecting_since_s: float | None = None  # epoch time glitches began, if ongoing
-        self._corrections = TiltCorrections()  # the loop's recent tilt control: a bias change?
+        self._corrections = CorrectionWindow(
+            "tilt"
+        )  # the loop's recent tilt control: a bias change?
         # IMU health
         self._imu = ImuHealth(cfg.imu_fault_s)  # timing, alarm, saturation, FAULT
         self.counters = ObserverCounters()
@@ -1404,7 +1414,7 @@ class ObserverEngine:
 
     def _watch_corrections(self, t_e: float, u_ne: tuple[float, float], period_s: float) -> None:
         """The tilt the loop's control turns the platform by over the coming period (eq.
-        3: w_p = (-u_E, u_N) / (tau g), u the e applied) into :class:`TiltCorrections`;
+        3: w_p = (-u_E, u_N) / (tau g), u the e applied) into :class:`CorrectionWindow`;
         beyond what the noise and the stated bias and tilt sigmas explain, the biases
         changed. Only while the learning gates are open: a fix not good enough to learn
         biases from is no evidence that they changed (gnss-outage seed 3, single point: 1.0
@@ -1417,8 +1427,8 @@ class ObserverEngine:
         k = period_s / (self.cfg.tau_s * GRAVITY_MPS2)
         corrections = self._corrections
         sigma_tilt = math.sqrt(self._model_tilt_var(0.0))
-        corrections.add(t_e, -u_ne[1] * k, u_ne[0] * k, sigma_tilt)
-        change = corrections.check(self._gyro_arw, self._sigma_bg_rps(), sigma_tilt)
+        corrections.add(t_e, -u_ne[1] * k, u_ne[0] * k, sigma_tilt, self._sigma_bg_rps())
+        change = corrections.check(self._gyro_arw, sigma_tilt)
         if change is not None:
             self._bias_changed(t_e, change)
 
@@ -1428,12 +1438,12 @@ class ObserverEngine:
         the tilt taken (as a specific force) if more, the gyro's to the window's rate, so
         what goes out states it and learning takes the new biases."""
         if change.again:
-            self._log.warning(t_e, bias_change_text(t_e, change, 0.0, 0.0), "bias change")
+            self._log.warning(t_e, bias_change_text(t_e, change, ""), "bias change")
             return
         obs = self._observer
         assert obs is not None
         cfg = self.cfg
-        sigma_a = max(cfg.accel_bias_sigma0_mps2, GRAVITY_MPS2 * change.tilt_rad)
+        sigma_a = max(cfg.accel_bias_sigma0_mps2, GRAVITY_MPS2 * change.angle_rad)
         sigma_g = max(self._sigma_bg_rps(), change.rate_rps)
         flt = self._ba_filter
         if flt is not None and flt.started:
@@ -1445,7 +1455,19 @@ class ObserverEngine:
             self._g_learn, seeded_exponent(cfg.gyro_bias_sigma0_dps * DEG_TO_RAD, sigma_g)
         )
         self.counters.bias_changes += 1
-        self._log.warning(t_e, bias_change_text(t_e, change, sigma_a, sigma_g), "bias change")
+        self._log.warning(
+            t_e, bias_change_text(t_e, change, xy_reopened_text(sigma_a, sigma_g)), "bias change"
+        )
+
+    def _z_bias_changed(self, t_e: float, change: BiasChange) -> None:
+        """The heading channel found a z bias change in its corrections and re-opened the
+        bias (:meth:`HeadingChannel.correct`): counted and logged."""
+        if not change.again:
+            self.counters.bias_changes += 1
+            reopened = z_reopened_text(self._heading.kf.sigma_rps)
+        else:
+            reopened = ""
+        self._log.warning(t_e, bias_change_text(t_e, change, reopened), "bias change")
 
     def _bias_filter_noise(self) -> BiasFilterNoise:
         """The accel-bias filter's noise: the IMU's white noise as measured where it is more
@@ -1631,6 +1653,8 @@ class ObserverEngine:
         corr = self._heading.correct(t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn)
         if corr.step_rad:
             self._turn_platform(corr.step_rad)
+        if corr.change is not None:
+            self._z_bias_changed(t_e, corr.change)
         self._w_pz_rps = corr.w_pz_rps
         obs.set_heading_rate(corr.w_pz_rps)
         obs.set_gyro_bias_z(self._heading.bg_z_rps)
@@ -1663,6 +1687,7 @@ class ObserverEngine:
         """
         if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or self._t_s is None:
             return
+        self._t_pos_rx_s = fix.t
         if self._frame is None:
             self._frame = LocalFrame((fix.lat_deg, fix.lon_deg, fix.alt_m))
         p_ant = self._frame.to_ned(fix.lat_deg, fix.lon_deg, fix.alt_m)
@@ -1858,7 +1883,10 @@ class ObserverEngine:
             return Solution(mode=Mode.INITIALISING, **common_fields(self._t_s, fix, self._imu))
         c9 = obs.c_bp9
         roll, pitch, yaw = rpy_from_mat9(c9)
-        coasting_s = self._coasting_s()
+        coasting_v_s = self._coasting_s()  # the velocity's: the tilt's drift
+        coasting_s = max(  # the position's (:func:`gap_beyond_s`)
+            coasting_v_s, gap_beyond_s(self._t_s, self._t_pos_rx_s, self.cfg.gnss_timeout_s)
+        )
         gnss_ok = (
             fix is not None
             and fix.quality != FixQuality.NONE
@@ -1892,7 +1920,7 @@ class ObserverEngine:
             wrap_pi(yaw - self._heading_to_turn_rad(t)) if self._heading_aligned else None,
             self._yaw_rate_rps(c9),
             lat, lon, alt, vel, obs.bg_hat_rps, obs.ba_hat_mps2,
-            self._sigma_tilt_rad(coasting_s),
+            self._sigma_tilt_rad(coasting_v_s),
             quality, sats, hdop, age, geoid, station, talker,
             gnss_ok, imu.ok, imu.alarm,  # gnss_ok, imu_ok, imu_alarm
             self._heading.reversing, self._stationary, coasting_s > 0.0,  # ... coasting
@@ -2010,11 +2038,11 @@ class ObserverEngine:
 
     def _sigma_tilt_rad(self, coasting_s: float) -> float:
         """Roll/pitch 1-sigma: :meth:`_model_tilt_var`'s, and what the loop's recent tilt
-        corrections show beyond it (:meth:`TiltCorrections.excess_rad`: a bias change
+        corrections show beyond it (:meth:`CorrectionWindow.excess_rad`: a bias change
         building, before it is one)."""
         var = self._model_tilt_var(coasting_s)
         sigma = math.sqrt(var)
-        excess = self._corrections.excess_rad(self._gyro_arw, self._sigma_bg_rps(), sigma)
+        excess = self._corrections.excess_rad(self._gyro_arw, sigma)
         return math.sqrt(var + excess * excess) if excess else sigma
 
     @property
