@@ -265,7 +265,11 @@ def test_receivers_of_1_to_20_hz_keep_tilt_and_position(rate_hz: float) -> None:
     # the tilt sees one velocity error per axis, sigma_v / (g tau) (0.029 deg): 0.041 deg in 2-D
     floor_rad = math.sqrt(2.0) * sigma_v / (9.81 * 4.0)
     assert math.sqrt(np.mean(np.square(tilt))) < 1.5 * floor_rad
-    assert all(s.mode is Mode.NAVIGATING for _, s in late)  # no coasting between epochs
+    assert all(s.mode is not Mode.COASTING for _, s in late)  # no coasting between epochs
+    # NAVIGATING throughout once the z bias is learnt from the courses (49 s at 1 Hz): before,
+    # its turn-on sigma (0.3 deg/s) turns the heading by as much between 1 Hz epochs, and the
+    # heading's stated sigma reaches 0.54 deg before each (DEGRADED for that moment)
+    assert all(s.mode is Mode.NAVIGATING for t, s in late if t > 50.0)
     pos_err = [_pos_err_m(motion, t, s) for t, s in late]
     # propagated over up to one interval on a velocity with 2 cm/s noise: 1.8 cm at 1 Hz
     assert math.sqrt(np.mean(np.square(pos_err))) < 0.03 and max(pos_err) < 0.2

@@ -9,11 +9,16 @@ reversed course is the reference, so there is no 180 deg jump and no backwards p
 The correction is a vertical control rate w_pz = K r / T, r = psi_hat - psi_ref, applied to
 the DCM by the observer over the next interval T. K is the gain of a scalar Kalman filter of
 the heading error: its variance grows with the gyro's ARW (ARW^2 T) and the z-bias
-uncertainty ((sigma_bz gap)^2), and each reference shrinks it by its sigma (COG: sigma_v /
-speed, so 0.4 deg at 3 m/s and 1.1 deg at 1 m/s). In steady state this is a time constant
-sigma_ref sqrt(T) / ARW (COG at 3 m/s: 3.6 s, at 1 m/s: 11 s) instead of a fixed 2 s that let
-the COG noise of low speed straight into the heading; after alignment or a long gap it is
-fast. The rate is applied after the epoch's time (the epoch reaches the engine late), so
+uncertainty, and each reference shrinks it by its sigma (COG: sigma_v / speed, so 0.4 deg at
+3 m/s and 1.1 deg at 1 m/s). In steady state this is a time constant sigma_ref sqrt(T) / ARW
+(COG at 3 m/s: 3.6 s, at 1 m/s: 11 s) instead of a fixed 2 s that let the COG noise of low
+speed straight into the heading; after alignment or a long gap it is fast. The z bias is a
+consider state of that filter (Schmidt): the heading error's covariance with the bias error
+grows by sigma_bz^2 T an epoch and shrinks with each reference and each bias update, and the
+variance grows by 2 T of it + (sigma_bz T)^2. Taken as white noise an epoch, the bias's part
+was (sigma_bz T)^2 alone, where an unlearnt bias b holds the heading b times the time
+constant off: 1.6 deg with 0.12 stated while reversing at 1 m/s after a z bias step.
+The rate is applied after the epoch's time (the epoch reaches the engine late), so
 the residual is taken from the heading at the epoch with the corrections applied since: no
 correction is taken twice, and K needs no cap.
 
@@ -168,7 +173,8 @@ class HeadingChannel:
         self._rejected_since_s: float | None = None
         self._t_last_s: float | None = None  # previous correction epoch
         self._p_psi_rad2 = math.pi**2  # heading error variance (unknown until aligned)
-        self._p_rest_rad2 = math.pi**2  # the same at the start of the window at rest
+        self._p_psi_bz = 0.0  # its covariance with the z bias error that turns it, rad^2/s
+        self._p_rest = (math.pi**2, 0.0)  # the two at the start of the window at rest
         self._corrections = CorrectionWindow("heading")  # recent control: a z bias change?
 
     # ------------------------------------------------------------------ reference choice
@@ -318,9 +324,11 @@ class HeadingChannel:
         return change
 
     def _gain(self, sigma_ref_rad: float) -> float:
-        """Kalman gain of one heading reference (module docstring); updates the variance."""
+        """Kalman gain of one heading reference (module docstring); updates the variance and
+        the covariance with the z bias, which it does not correct (a consider state)."""
         k = self._p_psi_rad2 / (self._p_psi_rad2 + sigma_ref_rad**2)
         self._p_psi_rad2 *= 1.0 - k
+        self._p_psi_bz *= 1.0 - k
         return k
 
     @property
@@ -339,13 +347,23 @@ class HeadingChannel:
         return math.sqrt(var + excess * excess)
 
     def _heading_growth_rad2(self, gap_s: float) -> float:
-        """Heading error variance added over ``gap_s`` without a reference: ARW^2 gap +
-        (sigma_bz gap)^2."""
-        return self._arw**2 * gap_s + (self.kf.sigma_rps * gap_s) ** 2
+        """Heading error variance added over ``gap_s`` without a reference: ARW^2 gap + the
+        z bias error's turn, 2 gap P_psi,bz + gap^2 sigma_bz^2."""
+        return (
+            self._arw**2 * gap_s + 2.0 * gap_s * self._p_psi_bz + (self.kf.sigma_rps * gap_s) ** 2
+        )
 
     def _predict_heading_variance(self, gap_s: float) -> None:
-        """Heading error variance grown over ``gap_s`` without a reference."""
+        """Heading error variance and its covariance with the z bias grown over ``gap_s``."""
         self._p_psi_rad2 += self._heading_growth_rad2(gap_s)
+        self._p_psi_bz += gap_s * self.kf.p_rps2
+
+    def _bias_updated(self, p_before_rps2: float) -> None:
+        """The z bias KF took an observation: what of its error the heading error shared
+        shrinks with it (by P after / P before, 1 - K)."""
+        ratio = self.kf.p_rps2 / p_before_rps2 if p_before_rps2 > 0.0 else 0.0
+        self._p_psi_bz *= ratio
+        self._p_rest = (self._p_rest[0], self._p_rest[1] * ratio)
 
     def bridged(self, sigma_rad: float, restart: bool) -> None:
         """Lost IMU samples were bridged, turning the heading by an error of ``sigma_rad``
@@ -362,6 +380,7 @@ class HeadingChannel:
         self._window = None
         self._corrections.clear()
         self._p_psi_rad2 = sigma_rad**2
+        self._p_psi_bz = 0.0
 
     def set_noise(self, arw_rps_per_sqrt_s: float, scale: float) -> None:
         """The gyro's ARW as measured at rest, and how much noisier than its config the IMU
@@ -373,12 +392,13 @@ class HeadingChannel:
 
     def rest_began(self) -> None:
         """A window at rest starts: its heading variance is what a hold at its end keeps."""
-        self._p_rest_rad2 = self._p_psi_rad2
+        self._p_rest = (self._p_psi_rad2, self._p_psi_bz)
 
     def held(self) -> None:
         """The caller held the heading where it was at the window's start (the gyro's drift
         over it, random walk and bias error alike, taken out): its variance is the start's."""
-        self._p_psi_rad2 = min(self._p_psi_rad2, self._p_rest_rad2)
+        if self._p_rest[0] < self._p_psi_rad2:
+            self._p_psi_rad2, self._p_psi_bz = self._p_rest
 
     def observe_zero_rate(self, t_s: float, mean_w_z_rps: float, window_s: float) -> bool:
         """Zero-rate update at rest: the mean bias-corrected body z rate over ``window_s``
@@ -392,7 +412,9 @@ class HeadingChannel:
         r = self._arw**2 / window_s
         if mean_w_z_rps**2 > self.cfg.glitch_sigma**2 * (self.kf.p_rps2 + r):
             return False
+        p_before = self.kf.p_rps2
         self.kf.update(mean_w_z_rps, r)
+        self._bias_updated(p_before)
         return True
 
     def _observe_bias(
@@ -415,7 +437,9 @@ class HeadingChannel:
             return  # the course's noise still the larger part: a longer line averages it
         r_rps2 = (r_ref + r_arw) / c22**2
         self.kf.predict(t_s - (self._t_kf_s if self._t_kf_s is not None else t_s))
+        p_before = self.kf.p_rps2
         self.kf.update(drift_rps / c22, r_rps2)
+        self._bias_updated(p_before)
         self._t_kf_s = t_s
         self._window = _BiasWindow(t_s, u, ref.sigma_rad, ref.source)
 
