@@ -38,6 +38,7 @@ from __future__ import annotations
 import logging
 import math
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass, replace
 
 import numpy as np
@@ -840,67 +841,69 @@ class EkfEngine:
         (heading) explain (:class:`CorrectionWindow`), the x/y (z) biases changed."""
         change = self._corrections.check(self._arw(), self._p_tilt_sigma_rad())
         if change is not None:
-            self._bias_changed(t_e, change)
+            self._bias_changed(t_e, change, self._reopen_xy)
         change = self._heading_corrections.check(self._arw(), self._p_heading_sigma_rad())
         if change is not None:
-            self._z_bias_changed(t_e, change)
+            self._bias_changed(t_e, change, self._reopen_z)
 
-    def _z_bias_changed(self, t_e: float, change: BiasChange) -> None:
-        """The z gyro bias changed beyond its in-run model (:mod:`gateway.estimation.
-        bias_change`): P's gyro bias about the vertical re-opens by the window's rate, the
-        heading by the angle taken with the IMU position error it makes through the lever
-        arm, the antenna being where the fixes say (as :meth:`_bias_changed` for the tilt)."""
+    def _bias_changed(
+        self, t_e: float, change: BiasChange, reopen: Callable[[BiasChange], str]
+    ) -> None:
+        """A bias change (:mod:`gateway.estimation.bias_change`): ``reopen`` re-opens P and
+        says what it did, unless the change came again; counted and logged."""
         if change.again:
             self._log.warning(t_e, bias_change_text(t_e, change, ""), "bias change")
             return
-        p, ins = self._p, self._ins
-        assert p is not None and ins is not None
-        c_bn = ins.c_bn
-        u = c_bn[2]  # the vertical in body axes
-        p[BG, BG] += change.rate_rps**2 * np.outer(u, u)
-        j = np.zeros(N_STATES)
-        j[ATT.stop - 1] = 1.0
-        j[POS] = skew(c_bn @ self._l_imu_ant_b) @ j[ATT]
-        p += change.angle_rad**2 * np.outer(j, j)
+        reopened = reopen(change)
         self.counters.bias_changes += 1
-        sigma_bz = self._vertical_bias_sigma_rps()
-        self._log.warning(
-            t_e, bias_change_text(t_e, change, z_reopened_text(sigma_bz)), "bias change"
-        )
+        self._log.warning(t_e, bias_change_text(t_e, change, reopened), "bias change")
 
-    def _bias_changed(self, t_e: float, change: BiasChange) -> None:
-        """The x/y biases changed beyond their in-run model (:mod:`gateway.estimation.
-        bias_change`): P's gyro block re-opens by the window's rate, its accelerometer block
-        by the tilt taken (as a specific force), and the tilt by as much with the IMU
-        position error that tilt makes through the lever arm, the antenna being where the
-        fixes say (as at a reset, :meth:`_set_from_fix`). Without the position term the next
-        fix "observed" the tilt and took P's tilt back to 0.1 deg while roll stayed 1.4 deg
-        off. The tilt and the bias re-open independently: as one quantity (as at levelling,
-        the loop having taken the whole step into the tilt), a step found in the turn it
-        came in put its rest into the other axis (-30 mg on x at 45 s of `short` seed 5: y
-        0.14 m/s^2 off with 0.03 stated, 600 frames beyond). The unobserved-bias share of
-        the stated tilt (:meth:`_unobserved_bias_var`) comes back with it."""
-        if change.again:
-            self._log.warning(t_e, bias_change_text(t_e, change, ""), "bias change")
-            return
+    def _reopen_attitude(self, j: Array, sigma: float) -> None:
+        """P += sigma^2 J J' for the attitude error per unit change ``j`` (N_STATES, k; its
+        ATT rows set), with the IMU position error it makes through the lever arm, the
+        antenna being where the fixes say (as at a reset, :meth:`_set_from_fix`). Without
+        the position term the next fix "observed" the tilt and took P's tilt back to 0.1
+        deg while roll stayed 1.4 deg off."""
         p, ins = self._p, self._ins
         assert p is not None and ins is not None
-        c_bn = ins.c_bn
-        j = np.zeros((N_STATES, 2))  # tilt and IMU position error per unit x/y bias change
-        j[ATT] = _tilt_of_accel_bias(c_bn)[:, :2]
-        j[POS] = skew(c_bn @ self._l_imu_ant_b) @ j[ATT]
+        j[POS] = skew(ins.c_bn @ self._l_imu_ant_b) @ j[ATT]
+        p += sigma * sigma * (j @ j.T)
+
+    def _reopen_xy(self, change: BiasChange) -> str:
+        """The x/y biases changed beyond their in-run model: P's gyro block re-opens by the
+        window's rate, its accelerometer block by the tilt taken (as a specific force), and
+        the tilt by as much (:meth:`_reopen_attitude`). The tilt and the bias re-open
+        independently: as one quantity (as at levelling, the loop having taken the whole
+        step into the tilt), a step found in the turn it came in put its rest into the
+        other axis (-30 mg on x at 45 s of `short` seed 5: y 0.14 m/s^2 off with 0.03
+        stated, 600 frames beyond). The unobserved-bias share of the stated tilt
+        (:meth:`_unobserved_bias_var`) comes back with it."""
+        p, ins = self._p, self._ins
+        assert p is not None and ins is not None
+        j = np.zeros((N_STATES, 2))  # tilt per unit x/y bias change
+        j[ATT] = _tilt_of_accel_bias(ins.c_bn)[:, :2]
         sigma_a, sigma_g = GRAVITY_MPS2 * change.angle_rad, change.rate_rps
-        p += sigma_a * sigma_a * (j @ j.T)
+        self._reopen_attitude(j, sigma_a)
         for i in (BA.start, BA.start + 1):
             p[i, i] += sigma_a * sigma_a
         for i in (BG.start, BG.start + 1):
             p[i, i] += sigma_g * sigma_g
-        self.counters.bias_changes += 1
         sigma_ba = math.sqrt(max(p.item(BA.start, BA.start), p.item(BA.start + 1, BA.start + 1)))
         sigma_bg = math.sqrt(max(p.item(BG.start, BG.start), p.item(BG.start + 1, BG.start + 1)))
-        self._log.warning(
-            t_e, bias_change_text(t_e, change, xy_reopened_text(sigma_ba, sigma_bg)), "bias change"
-        )
+        return xy_reopened_text(sigma_ba, sigma_bg)
+
+    def _reopen_z(self, change: BiasChange) -> str:
+        """The z gyro bias changed beyond its in-run model: P's gyro bias about the vertical
+        re-opens by the window's rate, the heading by the angle taken
+        (:meth:`_reopen_attitude`)."""
+        p, ins = self._p, self._ins
+        assert p is not None and ins is not None
+        u = ins.c_bn[2]  # the vertical in body axes
+        p[BG, BG] += change.rate_rps**2 * np.outer(u, u)
+        j = np.zeros((N_STATES, 1))
+        j[ATT.stop - 1, 0] = 1.0  # about the vertical
+        self._reopen_attitude(j, change.angle_rad)
+        return z_reopened_text(self._vertical_bias_sigma_rps())
 
     def _noise_as_measured(self, tun: EkfTuning) -> EkfTuning:
         """The white rate and acceleration noise the IMU showed at rest, where it is more
