@@ -297,3 +297,33 @@ def test_the_heading_states_the_lag_an_unlearnt_z_bias_holds_it_at() -> None:
     ratios_a = np.array(ratios)
     assert np.mean(ratios_a > 3.0) < 0.01, np.mean(ratios_a > 3.0)
     assert 0.5 < float(np.sqrt(np.mean(ratios_a**2))) < 1.3  # a 1-sigma, not a bound
+
+
+def test_a_heading_off_beyond_its_gap_is_stated_on_the_first_course_after_it() -> None:
+    """A z bias step at the start of a 10 s outage turns the heading 2.1 deg, which nothing
+    in the outage can see: it comes out stating the gap's growth, 0.15 deg. One course at
+    2.5 m/s is 0.46 deg, so the first one after the gap is 4.4 sigma off; weighed by the
+    stated 0.15 the channel took a tenth of it per epoch, NAVIGATING 2.0 deg off for 0.5 s
+    (`outages` seed 551). Beyond 3 sigma, the first residual after a gap is the heading's
+    error: stated at once, and the next course takes nearly all of it."""
+    cfg = ObserverConfig()
+    sigma_ref = cfg.gnss_vel_sigma_mps / 2.5
+    ref = HeadingReference(0.0, sigma_ref, HeadingSource.COG)
+
+    def after_gap(off_deg: float) -> HeadingChannel:
+        channel = HeadingChannel(cfg)
+        channel.aligned(math.radians(0.1))
+        channel.kf.p_rps2 = math.radians(0.008) ** 2  # the z bias learnt to its wander
+        for k in range(100):  # 10 s on the course
+            channel.correct(0.1 * k, 0.0, ref, 0.0, 1.0, learn=True)
+        channel.correct(20.0, math.radians(off_deg), ref, 0.0, 1.0, learn=True)  # 10 s later
+        return channel
+
+    calm = math.degrees(after_gap(0.0).sigma_psi_at(20.0))
+    assert calm < 0.3
+    off = after_gap(2.1)
+    assert math.degrees(off.sigma_psi_at(20.0)) > 1.9
+    step = off.correct(20.1, math.radians(2.1), ref, 0.0, 1.0, learn=True).w_pz_rps * 0.1
+    assert math.degrees(step) > 0.9 * 2.1
+    # within 3 sigma it is the courses' noise, as before: the gap's growth stated
+    assert math.degrees(after_gap(0.5).sigma_psi_at(20.0)) == calm
