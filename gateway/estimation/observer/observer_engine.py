@@ -18,6 +18,7 @@ import logging
 import math
 from bisect import bisect_left
 from collections import deque
+from collections.abc import Callable
 from dataclasses import dataclass
 from operator import itemgetter
 from typing import Literal
@@ -300,9 +301,8 @@ class ObserverEngine:
         self._control_from_s = 0.0  # IMU time they began
         self._control_period_s = 0.0  # the epoch period they are meant for
         self._rejecting_since_s: float | None = None  # epoch time glitches began, if ongoing
-        self._corrections = CorrectionWindow(
-            "tilt"
-        )  # the loop's recent tilt control: a bias change?
+        # the loop's recent tilt control: a bias change?
+        self._corrections = CorrectionWindow("tilt")
         # IMU health
         self._imu = ImuHealth(cfg.imu_fault_s)  # timing, alarm, saturation, FAULT
         self.counters = ObserverCounters()
@@ -1430,16 +1430,25 @@ class ObserverEngine:
         corrections.add(t_e, -u_ne[1] * k, u_ne[0] * k, sigma_tilt, self._sigma_bg_rps())
         change = corrections.check(self._gyro_arw, sigma_tilt)
         if change is not None:
-            self._bias_changed(t_e, change)
+            self._bias_changed(t_e, change, self._reopen_xy)
 
-    def _bias_changed(self, t_e: float, change: BiasChange) -> None:
-        """The x/y biases changed beyond their in-run model (:mod:`gateway.estimation.
-        bias_change`): their sigmas re-open, the accelerometer's to the turn-on spread or
-        the tilt taken (as a specific force) if more, the gyro's to the window's rate, so
-        what goes out states it and learning takes the new biases."""
+    def _bias_changed(
+        self, t_e: float, change: BiasChange, reopen: Callable[[BiasChange], str]
+    ) -> None:
+        """A bias change (:mod:`gateway.estimation.bias_change`): ``reopen`` re-opens the
+        biases and says what it did, unless the change came again; counted and logged."""
         if change.again:
             self._log.warning(t_e, bias_change_text(t_e, change, ""), "bias change")
             return
+        reopened = reopen(change)
+        self.counters.bias_changes += 1
+        self._log.warning(t_e, bias_change_text(t_e, change, reopened), "bias change")
+
+    def _reopen_xy(self, change: BiasChange) -> str:
+        """The x/y biases changed beyond their in-run model: their sigmas re-open, the
+        accelerometer's to the turn-on spread or the tilt taken (as a specific force) if
+        more, the gyro's to the window's rate, so what goes out states it and learning
+        takes the new biases."""
         obs = self._observer
         assert obs is not None
         cfg = self.cfg
@@ -1454,20 +1463,12 @@ class ObserverEngine:
         self._g_learn = min(
             self._g_learn, seeded_exponent(cfg.gyro_bias_sigma0_dps * DEG_TO_RAD, sigma_g)
         )
-        self.counters.bias_changes += 1
-        self._log.warning(
-            t_e, bias_change_text(t_e, change, xy_reopened_text(sigma_a, sigma_g)), "bias change"
-        )
+        return xy_reopened_text(sigma_a, sigma_g)
 
-    def _z_bias_changed(self, t_e: float, change: BiasChange) -> None:
-        """The heading channel found a z bias change in its corrections and re-opened the
-        bias (:meth:`HeadingChannel.correct`): counted and logged."""
-        if not change.again:
-            self.counters.bias_changes += 1
-            reopened = z_reopened_text(self._heading.kf.sigma_rps)
-        else:
-            reopened = ""
-        self._log.warning(t_e, bias_change_text(t_e, change, reopened), "bias change")
+    def _reopened_z(self, change: BiasChange) -> str:
+        """What the heading channel re-opened on a z bias change
+        (:meth:`HeadingChannel.correct` does it)."""
+        return z_reopened_text(self._heading.kf.sigma_rps)
 
     def _bias_filter_noise(self) -> BiasFilterNoise:
         """The accel-bias filter's noise: the IMU's white noise as measured where it is more
@@ -1654,7 +1655,7 @@ class ObserverEngine:
         if corr.step_rad:
             self._turn_platform(corr.step_rad)
         if corr.change is not None:
-            self._z_bias_changed(t_e, corr.change)
+            self._bias_changed(t_e, corr.change, self._reopened_z)
         self._w_pz_rps = corr.w_pz_rps
         obs.set_heading_rate(corr.w_pz_rps)
         obs.set_gyro_bias_z(self._heading.bg_z_rps)
