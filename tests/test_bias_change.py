@@ -16,14 +16,31 @@ import logging
 import math
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from drivers.logs.candump import CandumpWriter, read_candump
+from drivers.units import DEG_TO_RAD, wrap_pi
 from gateway.config.gateway_config import Engine, load_config
-from gateway.estimation.bias_change import WINDOW_S, CorrectionWindow
+from gateway.estimation.bias_change import WINDOW_S, CorrectionWindow, bias_change_text
+from gateway.estimation.ekf.ekf_config import EkfConfig
+from gateway.estimation.ekf.ekf_engine import EkfEngine
+from gateway.estimation.observer.observer_config import ObserverConfig
+from gateway.estimation.observer.observer_engine import ObserverEngine
+from gateway.estimation.solution import Mode
 from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
+from tests.kinematics import (
+    GYRO_ARW_PER_SAMPLE_RPS,
+    Motion,
+    Segment,
+    gnss_stream,
+    imu_stream,
+    motion_time,
+    solutions,
+    state_at,
+)
 from tests.n2k_check import heading_beyond_navigating, position_beyond_mode, tilt_beyond_stated
 
 GYRO_PGN, ACCEL_PGN = 0xFF10, 0xFF11
@@ -72,6 +89,51 @@ def test_corrections_the_model_explains_are_no_change() -> None:
     wide.add(0.0, 0.0, 0.0, math.radians(0.6), sigma_bg)  # an outage's drift stated at its start
     wide.add(1.0, 0.0, 0.0, sigma_tilt, sigma_bg)
     assert wide.explained_rad(ARW, sigma_tilt) > math.radians(0.6)
+
+
+def test_courses_off_the_heading_beyond_their_sigma_are_a_change() -> None:
+    """The heading window's courses: their weighted mean offset against its sigma and the
+    largest heading sigma stated in the window. 0.2 deg over 50 courses of 1.2 deg (0.17
+    deg) with 0.2 stated is no change and adds nothing; 0.9 deg (3.4 sigma) is stated
+    beyond 2 sigma and not yet a change; 1.5 deg (5.7 sigma) is one, told by the courses,
+    the window then cleared. Courses of under 2 s are no evidence yet, nor those behind a
+    turn by a receiver's smoothing."""
+    sigma_psi, sigma_course = math.radians(0.2), math.radians(1.2)
+    window = CorrectionWindow("heading")
+    for i in range(15):  # 1.4 s of courses 3 deg off
+        window.add(0.1 * i - 10.0, 0.0, 0.0, sigma_psi, 1e-4)
+        window.add_course(0.1 * i - 10.0, math.radians(3.0), sigma_course, 0.0, 0.1)
+    assert window.excess_rad(ARW, sigma_psi) == 0.0 and window.check(ARW, sigma_psi) is None
+
+    def fill(offset_deg: float, t0_s: float) -> None:
+        for i in range(50):
+            t = t0_s + 0.1 * i
+            window.add(t, 0.0, 0.0, sigma_psi, 1e-4)
+            window.add_course(t, math.radians(offset_deg), sigma_course, 0.0, 0.1)
+
+    fill(0.2, 0.0)
+    assert window.check(ARW, sigma_psi) is None
+    assert window.excess_rad(ARW, sigma_psi) == 0.0
+    fill(0.9, 10.0)
+    assert window.check(ARW, sigma_psi) is None
+    explained = math.hypot(sigma_psi, sigma_course / math.sqrt(50))
+    assert window.excess_rad(ARW, sigma_psi) == pytest.approx(
+        math.sqrt(math.radians(0.9) ** 2 - (2 * explained) ** 2), rel=1e-6
+    )
+    fill(-1.5, 20.0)
+    change = window.check(ARW, sigma_psi)
+    assert change is not None and change.courses and not change.again
+    assert math.degrees(change.angle_rad) == pytest.approx(1.5)
+    assert "was 1.50 deg off the courses over 5 s" in bias_change_text(25.0, change, "x")
+    assert window.excess_rad(ARW, sigma_psi) == 0.0  # cleared
+    # a 1 Hz receiver's courses 3.5 deg behind in a turn at 11 deg/s (its velocity the
+    # mean over the second): half the interval's turn is in their sigma, no evidence
+    turning = CorrectionWindow("heading")
+    for i in range(5):
+        turning.add(100.0 + i, 0.0, 0.0, sigma_psi, 1e-4)
+        turning.add_course(100.0 + i, math.radians(3.5), math.radians(0.9), math.radians(11), 1.0)
+    assert turning.check(ARW, sigma_psi) is None
+    assert turning.excess_rad(ARW, sigma_psi) == 0.0
 
 
 def with_bias_step(
@@ -203,7 +265,7 @@ def test_a_z_gyro_step_is_stated_and_learnt_before_an_outage(
     with caplog.at_level(logging.WARNING, logger="gateway"):
         replay(imu, gnss, tmp_path / "out.log", config)
     changes = [r.getMessage() for r in caplog.records if "IMU bias change" in r.getMessage()]
-    assert changes and "the heading took" in changes[0] and "z gyro bias re-opened" in changes[0]
+    assert changes and "the heading " in changes[0] and "z gyro bias re-opened" in changes[0]
     t0 = next(iter(read_candump(drive / "imu.log"))).timestamp
     assert STEP_S < float(changes[0].split("t=")[1].split(":")[0]) - t0 < STEP_S + 10.0
     truth = Truth.load(drive / "truth.npz")
@@ -213,3 +275,83 @@ def test_a_z_gyro_step_is_stated_and_learnt_before_an_outage(
     assert checked > 8000 and beyond == [], beyond[:10]
     checked, beyond = tilt_beyond_stated(tmp_path / "out.log", truth)
     assert checked > 9000 and beyond == [], beyond[:10]
+
+
+#: Learnt its biases in two turns at 3 m/s, slows into a U-turn at 1.5 m/s, stops for 3 s
+#: and reverses at 1 m/s: the z step comes as the U-turn begins.
+SLOW_REVERSE = Motion(
+    [
+        Segment(10.0),
+        Segment(5.0, accel_mps2=0.6),
+        Segment(20.0),
+        Segment(10.0, yaw_rate_rps=0.15),
+        Segment(20.0),
+        Segment(10.0, yaw_rate_rps=-0.15),
+        Segment(20.0),
+        Segment(2.5, accel_mps2=-0.6),
+        Segment(6.0, yaw_rate_rps=0.3),  # the step at its start
+        Segment(2.5, accel_mps2=-0.6),
+        Segment(3.0),
+        Segment(2.0, accel_mps2=-0.5),
+        Segment(25.0),
+    ],
+    yaw0_rad=0.7,
+)
+SLOW_REVERSE_STEP_S = 97.5
+LEVER = (0.3, 0.0, -3.0)
+
+
+@pytest.mark.parametrize("step_dps", [0.15, -0.3])
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF], ids=["observer", "ekf"])
+def test_a_z_step_before_a_stop_and_a_slow_reverse_is_stated_and_learnt(
+    engine: Engine, step_dps: float
+) -> None:
+    """`headland-reversing` seed 553 with +0.15 deg/s at 250 s, as a test motion (the
+    datasheet's ARW, 2 cm/s Doppler noise). The EKF's heading gain on courses of 1.2 deg at
+    1 m/s is small: its corrections stayed within what the window explains, the stop's
+    zero-rate updates were refused as a turn on the spot, and it said NAVIGATING 2.1 deg
+    off. The observer, with -0.3 deg/s, stated the heading 0.5 deg beyond in the U-turn,
+    forgot that as the gates closed at the stop, and reversed NAVIGATING 3.0 deg off. Now
+    the courses' mean offset tells the change (:meth:`CorrectionWindow.add_course`) and the
+    observer keeps what its window showed: no NAVIGATING heading beyond 0.1 + 3 x 0.5 deg,
+    the change found, the heading within 0.6 deg at the end. The EKF learns the step at the
+    stop: its spans there were taken twice before (the rates' bias estimate of their time),
+    +0.14 deg/s learnt as +0.37 and the heading reversing 1.4 deg off (NAVIGATING)."""
+    imu = imu_stream(
+        SLOW_REVERSE,
+        bias_g_rps=(0.0, 0.0, 0.03 * DEG_TO_RAD),
+        noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS,
+        noise_a_mps2=0.01,
+        seed=1,
+    )
+    b = step_dps * DEG_TO_RAD
+    imu = [
+        dataclasses.replace(s, w_ib_b=(s.w_ib_b[0], s.w_ib_b[1], s.w_ib_b[2] + b))
+        if motion_time(s.t) >= SLOW_REVERSE_STEP_S
+        else s
+        for s in imu
+    ]
+    fixes = gnss_stream(SLOW_REVERSE, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=1)
+    est: ObserverEngine | EkfEngine = (
+        ObserverEngine(ObserverConfig(antenna_lever_arm_m=LEVER))
+        if engine == Engine.OBSERVER
+        else EkfEngine(EkfConfig(antenna_lever_arm_m=LEVER))
+    )
+    out = [(t, s) for t, s in solutions(est, imu, fixes) if t >= SLOW_REVERSE_STEP_S - 5.0]
+    c_bn = state_at(SLOW_REVERSE, np.array([t for t, _ in out])).c_bn
+    errors = np.array(
+        [
+            math.degrees(wrap_pi(s.yaw_rad - math.atan2(c[1, 0], c[0, 0])))
+            for (_, s), c in zip(out, c_bn, strict=True)
+            if s.yaw_rad is not None
+        ]
+    )
+    navigating = np.array([s.mode == Mode.NAVIGATING for _, s in out])
+    assert len(errors) == len(out) > 200  # every 0.2 s
+    assert np.max(np.abs(errors[navigating])) < 0.1 + 3 * 0.5
+    assert est.counters.bias_changes >= 1
+    assert abs(errors[-1]) < 0.6
+    if isinstance(est, EkfEngine):
+        learnt = est.learned_state()
+        assert learnt is not None
+        assert math.degrees(learnt.bias_g_rps[2]) == pytest.approx(0.03 + step_dps, abs=0.03)

@@ -229,7 +229,9 @@ def test_the_z_bias_from_a_noisy_course_is_as_good_as_its_epochs_and_says_so() -
             psi_err -= w_pz * dt
             hc += w_pz * dt
             ref = HeadingReference(sigma_ref * rng.normal(), sigma_ref, HeadingSource.COG)
-            w_pz = channel.correct(k * dt, psi_err, ref, hc, 1.0, learn=True).w_pz_rps
+            w_pz = channel.correct(
+                k * dt, psi_err, ref, hc, 1.0, learn=True, yaw_rate_rps=0
+            ).w_pz_rps
         errors.append(channel.bg_z_rps - b_true)
         sigmas.append(channel.kf.sigma_rps)
     rms_dps = math.degrees(float(np.sqrt(np.mean(np.square(errors)))))
@@ -291,7 +293,9 @@ def test_the_heading_states_the_lag_an_unlearnt_z_bias_holds_it_at() -> None:
             psi_err += b_err * dt + arw * math.sqrt(dt) * rng.normal() - w_pz * dt
             hc += w_pz * dt
             ref = HeadingReference(sigma_ref * rng.normal(), sigma_ref, HeadingSource.COG)
-            w_pz = channel.correct(k * dt, psi_err, ref, hc, 1.0, learn=False).w_pz_rps
+            w_pz = channel.correct(
+                k * dt, psi_err, ref, hc, 1.0, learn=False, yaw_rate_rps=0
+            ).w_pz_rps
             if k >= 200:
                 ratios.append(abs(psi_err) / channel.sigma_psi_at(k * dt))
     ratios_a = np.array(ratios)
@@ -315,15 +319,20 @@ def test_a_heading_off_beyond_its_gap_is_stated_on_the_first_course_after_it() -
         channel.aligned(math.radians(0.1))
         channel.kf.p_rps2 = math.radians(0.008) ** 2  # the z bias learnt to its wander
         for k in range(100):  # 10 s on the course
-            channel.correct(0.1 * k, 0.0, ref, 0.0, 1.0, learn=True)
-        channel.correct(20.0, math.radians(off_deg), ref, 0.0, 1.0, learn=True)  # 10 s later
+            channel.correct(0.1 * k, 0.0, ref, 0.0, 1.0, learn=True, yaw_rate_rps=0)
+        channel.correct(
+            20.0, math.radians(off_deg), ref, 0.0, 1.0, learn=True, yaw_rate_rps=0
+        )  # 10 s later
         return channel
 
     calm = math.degrees(after_gap(0.0).sigma_psi_at(20.0))
     assert calm < 0.3
     off = after_gap(2.1)
     assert math.degrees(off.sigma_psi_at(20.0)) > 1.9
-    step = off.correct(20.1, math.radians(2.1), ref, 0.0, 1.0, learn=True).w_pz_rps * 0.1
+    step = (
+        off.correct(20.1, math.radians(2.1), ref, 0.0, 1.0, learn=True, yaw_rate_rps=0).w_pz_rps
+        * 0.1
+    )
     assert math.degrees(step) > 0.9 * 2.1
     # within 3 sigma it is the courses' noise, as before: the gap's growth stated
     assert math.degrees(after_gap(0.5).sigma_psi_at(20.0)) == calm

@@ -192,9 +192,12 @@ class EkfEngine:
         self._log = LogLimiter(log)
         self._corrections = CorrectionWindow("tilt")  # recent attitude corrections: a bias change?
         self._heading_corrections = CorrectionWindow("heading")  # the same for the z bias
+        self._at_rest_epoch = False  # the last epoch's speed was under the stationary one
+        self._t_course_s: float | None = None  # the last epoch with a course
         self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._last_vel: tuple[float, tuple[float, float]] | None = None
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
+        self._l_ant_m = float(np.linalg.norm(self._l_ant_b))
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
         self._l_imu_m = float(np.linalg.norm(self._l_imu_b))
         self._l_imu_b_f = tuple(float(x) for x in self._l_imu_b)
@@ -600,6 +603,7 @@ class EkfEngine:
             else:
                 measurements.append(self._fuse_fix_position(row, c_e, p_ant))
         vel = self._gnss_velocity(fix)
+        course = None
         if vel is not None:
             w_e, sig_lever = self._lever_rate(t_e, self._l_imu_ant_m)
             measurements.append(
@@ -607,6 +611,11 @@ class EkfEngine:
                     row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
                 )
             )
+            course = self._course_residual(fix, t_e, row, w_e, vel[1])
+        at_rest = fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps
+        if at_rest and not self._at_rest_epoch:
+            self._forget_heading_corrections()
+        self._at_rest_epoch = at_rest
         if fix.heading_rad is not None:
             measurements.append(
                 fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD)
@@ -631,6 +640,8 @@ class EkfEngine:
             elif not ok and m.name == "velocity":
                 self.counters.velocity_rejected += 1
                 self._t_velocity_rejected_s = t_e
+            elif m.name == "velocity" and course is not None:
+                self._heading_corrections.add_course(t_e, *course)
             elif not ok and m.name == "zero rate":
                 self.counters.zero_rate_rejected += 1
             elif not ok:
@@ -686,6 +697,31 @@ class EkfEngine:
             w_z = float(hist.mean_rate(0.5 * (a + b), 0.5 * (b - a))[2]) - (b_z - learnt_b)
             out.append(fuse_zero_rate(row[ROW_C].reshape(3, 3), w_z, b - a, tun.q_gyro_rad2_per_s))
         return out
+
+    def _course_residual(
+        self, fix: GnssFix, t_e: float, row: Array, w_e: Array, sigma_v_mps: float
+    ) -> tuple[float, float, float, float] | None:
+        """The epoch's course less the heading at ``row`` (before the epoch's correction;
+        turned round when reversing), rad, its 1-sigma (the velocity's ``sigma_v_mps`` and
+        the antenna lever arm's gyro noise, over the speed), the yaw rate ``w_e`` makes,
+        rad/s, and the time since the last course, s, from ``cog_min_speed_mps``: the
+        heading window's evidence (:meth:`CorrectionWindow.add_course`)."""
+        vel = fix.vel_ne_mps
+        speed = 0.0 if vel is None else math.hypot(*vel)
+        if vel is None or speed < self.cfg.cog_min_speed_mps:
+            return None
+        c = to_mat9(row[ROW_C].reshape(3, 3))
+        forward = along_body_x(float(row[ROW_V][0]), float(row[ROW_V][1]), c) >= 0.0
+        course = heading_from_antenna_course(vel, c, w_e, self._l_ant_b, forward)
+        sig_lever = centred_rate_velocity_sigma_mps(self._arw(), self._l_ant_m)
+        yaw_rate = c[6] * float(w_e[0]) + c[7] * float(w_e[1]) + c[8] * float(w_e[2])
+        last, self._t_course_s = self._t_course_s, t_e
+        return (
+            wrap_pi(course - math.atan2(c[3], c[0])),
+            math.hypot(sigma_v_mps, sig_lever) / speed,
+            yaw_rate,
+            0.0 if last is None else t_e - last,
+        )
 
     def _lever_rate(self, t_e: float, lever_m: float) -> tuple[Array, float]:
         """Body rate at ``t_e`` for a lever-arm velocity, and that velocity's 1-sigma over a
@@ -907,10 +943,25 @@ class EkfEngine:
         assert p is not None and ins is not None
         u = ins.c_bn[2]  # the vertical in body axes
         p[BG, BG] += change.rate_rps**2 * np.outer(u, u)
-        j = np.zeros((N_STATES, 1))
-        j[ATT.stop - 1, 0] = 1.0  # about the vertical
-        self._reopen_attitude(j, change.angle_rad)
+        self._reopen_heading(change.angle_rad)
         return z_reopened_text(self._vertical_bias_sigma_rps())
+
+    def _reopen_heading(self, sigma_rad: float) -> None:
+        """P's heading (about the vertical) re-opens by ``sigma_rad``
+        (:meth:`_reopen_attitude`)."""
+        j = np.zeros((N_STATES, 1))
+        j[ATT.stop - 1, 0] = 1.0
+        self._reopen_attitude(j, sigma_rad)
+
+    def _forget_heading_corrections(self) -> None:
+        """A stop: the heading window ends, and what it showed beyond P's heading stays in
+        P until courses take it (aging out of the window through the stop, a z step's
+        excess was forgotten)."""
+        window = self._heading_corrections
+        excess = window.excess_rad(self._arw(), self._p_heading_sigma_rad())
+        if excess > 0.0:
+            self._reopen_heading(excess)
+        window.clear()
 
     def _noise_as_measured(self, tun: EkfTuning) -> EkfTuning:
         """The white rate and acceleration noise the IMU showed at rest, where it is more
@@ -946,7 +997,7 @@ class EkfEngine:
         measured = self._gnss_velocity(fix)
         if vel is None or measured is None or speed < self.cfg.cog_min_speed_mps:
             return None
-        w_e, sig_lever = self._lever_rate(t_e, float(np.linalg.norm(self._l_ant_b)))
+        w_e, sig_lever = self._lever_rate(t_e, self._l_ant_m)
         forward = self._forward_at(vel, row, w_e)
         course = heading_from_antenna_course(vel, row[ROW_C], w_e, self._l_ant_b, forward)
         sigma_v = math.hypot(measured[1], sig_lever)

@@ -1651,7 +1651,9 @@ class ObserverEngine:
         ref = self._heading.select_reference(
             t_e, psi_e, cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
         )
-        corr = self._heading.correct(t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn)
+        corr = self._heading.correct(
+            t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn, yaw_rate_rps
+        )
         if corr.step_rad:
             self._turn_platform(corr.step_rad)
         if corr.change is not None:
