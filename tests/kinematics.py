@@ -249,6 +249,20 @@ def gnss_stream(
     return fixes
 
 
+def with_gyro_offset(
+    samples: list[ImuSample], t0_s: float, t1_s: float, dw_b_rps: tuple[float, float, float]
+) -> list[ImuSample]:
+    """Fault or bias step: add ``dw_b_rps`` (body) to the gyro of samples with motion time
+    in [t0, t1)."""
+    dx, dy, dz = dw_b_rps
+    return [
+        replace(s, w_ib_b=(s.w_ib_b[0] + dx, s.w_ib_b[1] + dy, s.w_ib_b[2] + dz))
+        if t0_s <= s.t - T0_S < t1_s
+        else s
+        for s in samples
+    ]
+
+
 def with_velocity_offset(
     fixes: list[GnssFix], t0_s: float, t1_s: float, dv_ne_mps: tuple[float, float]
 ) -> list[GnssFix]:

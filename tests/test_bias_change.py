@@ -37,9 +37,9 @@ from tests.kinematics import (
     Segment,
     gnss_stream,
     imu_stream,
-    motion_time,
     solutions,
     state_at,
+    with_gyro_offset,
 )
 from tests.n2k_check import heading_beyond_navigating, position_beyond_mode, tilt_beyond_stated
 
@@ -324,13 +324,7 @@ def test_a_z_step_before_a_stop_and_a_slow_reverse_is_stated_and_learnt(
         noise_a_mps2=0.01,
         seed=1,
     )
-    b = step_dps * DEG_TO_RAD
-    imu = [
-        dataclasses.replace(s, w_ib_b=(s.w_ib_b[0], s.w_ib_b[1], s.w_ib_b[2] + b))
-        if motion_time(s.t) >= SLOW_REVERSE_STEP_S
-        else s
-        for s in imu
-    ]
+    imu = with_gyro_offset(imu, SLOW_REVERSE_STEP_S, math.inf, (0.0, 0.0, step_dps * DEG_TO_RAD))
     fixes = gnss_stream(SLOW_REVERSE, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=1)
     est: ObserverEngine | EkfEngine = (
         ObserverEngine(ObserverConfig(antenna_lever_arm_m=LEVER))

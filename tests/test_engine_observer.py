@@ -28,6 +28,7 @@ from tests.kinematics import (
     run,
     solutions,
     state_at,
+    with_gyro_offset,
     with_velocity_offset,
 )
 from tests.n2k_check import decode_log, position_errors_m
@@ -149,12 +150,7 @@ def test_a_platform_tilted_beyond_the_glitch_gate_recovers(accel_bias_filter: bo
     motion = Motion([*START, Segment(120.0)])
     imu = imu_stream(motion)
     fault = math.radians(15.0)
-    samples = [
-        replace(s, w_ib_b=(s.w_ib_b[0] + fault, s.w_ib_b[1], s.w_ib_b[2]))
-        if 40.0 <= motion_time(s.t) < 43.0
-        else s
-        for s in imu
-    ]
+    samples = with_gyro_offset(imu, 40.0, 43.0, (fault, 0.0, 0.0))
     cfg = ObserverConfig(antenna_lever_arm_m=LEVER, accel_bias_filter=accel_bias_filter)
     out = solutions(ObserverEngine(cfg), samples, gnss_stream(motion, antenna_lever_arm_m=LEVER))
     assert math.degrees(abs(_at(out, 44.5).roll_rad or 0.0)) > 20.0  # beyond the gate

@@ -9,12 +9,11 @@ it (no odometer) and drifts as before, within the stated sigma.
 
 from __future__ import annotations
 
-import dataclasses
 import math
 
 import pytest
 
-from drivers.samples import GnssFix, ImuSample
+from drivers.samples import GnssFix
 from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection
 from gateway.estimation.observer.coast_budget import CoastBudget
 from gateway.estimation.observer.ground_constraint import GroundResidual
@@ -28,6 +27,7 @@ from tests.kinematics import (
     imu_stream,
     motion_time,
     state_at,
+    with_gyro_offset,
 )
 
 LEVER = (0.3, 0.0, -3.0)
@@ -53,13 +53,12 @@ def drive(u_turn: bool) -> Motion:
 def outage_errors(u_turn: bool) -> list[tuple[float, float, float, float]]:
     """(motion time, roll error, pitch error, stated tilt sigma), deg, every 4th sample."""
     motion = drive(u_turn)
-    imu: list[ImuSample] = [
-        s if motion_time(s.t) < OUTAGE_S[0]
-        else dataclasses.replace(
-            s, w_ib_b=(s.w_ib_b[0] + SHIFT_RPS, s.w_ib_b[1] + SHIFT_RPS, s.w_ib_b[2])
-        )
-        for s in imu_stream(motion, IMU_LEVER, noise_g_rps=1e-4, noise_a_mps2=0.01)
-    ]  # fmt: skip
+    imu = with_gyro_offset(
+        imu_stream(motion, IMU_LEVER, noise_g_rps=1e-4, noise_a_mps2=0.01),
+        OUTAGE_S[0],
+        math.inf,
+        (SHIFT_RPS, SHIFT_RPS, 0.0),
+    )
     fixes: list[GnssFix] = [
         f for f in gnss_stream(motion, antenna_lever_arm_m=LEVER, latency_s=0.05)
         if not OUTAGE_S[0] <= motion_time(f.t) - 0.05 < OUTAGE_S[1]

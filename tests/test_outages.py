@@ -35,6 +35,7 @@ from tests.kinematics import (
     imu_stream,
     motion_time,
     state_at,
+    with_gyro_offset,
 )
 from tests.n2k_check import Decoded, decode_log, stated_sigma_deg
 
@@ -652,11 +653,9 @@ def test_after_an_outage_the_stated_tilt_sigma_decays_with_the_drift_it_covered(
     0.1 deg plus 3 stated sigmas, DEGRADED or not."""
     drive = Motion([Segment(10.0), Segment(5.0, accel_mps2=0.6), Segment(85.0)], yaw0_rad=1.0)
     shift = math.radians(0.01)
-    imu = [
-        s if motion_time(s.t) < 40.0
-        else dataclasses.replace(s, w_ib_b=(s.w_ib_b[0] + shift, s.w_ib_b[1], s.w_ib_b[2]))
-        for s in imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01)
-    ]  # fmt: skip
+    imu = with_gyro_offset(
+        imu_stream(drive, noise_g_rps=1e-4, noise_a_mps2=0.01), 40.0, math.inf, (shift, 0.0, 0.0)
+    )
     fixes = [
         f for f in gnss_stream(drive, antenna_lever_arm_m=LEVER, latency_s=0.07)
         if not 40.0 <= f.t - T0_S < 80.0
