@@ -193,6 +193,9 @@ class EkfEngine:
         self._corrections = CorrectionWindow("tilt")  # recent attitude corrections: a bias change?
         self._heading_corrections = CorrectionWindow("heading")  # the same for the z bias
         self._at_rest_epoch = False  # the last epoch's speed was under the stationary one
+        # turned at rest beyond the z bias since the last course, rad, over refused spans, s
+        self._rest_turn = (0.0, 0.0)
+        self._pending_turn_rad = 0.0  # turned in the rest spans not checked yet
         self._t_course_s: float | None = None  # the last epoch with a course
         self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._last_vel: tuple[float, tuple[float, float]] | None = None
@@ -612,6 +615,8 @@ class EkfEngine:
                 )
             )
             course = self._course_residual(fix, t_e, row, w_e, vel[1])
+            if course is not None:
+                self._fold_rest_turn()
         at_rest = fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps
         if at_rest and not self._at_rest_epoch:
             self._forget_heading_corrections()
@@ -663,7 +668,8 @@ class EkfEngine:
         vehicle did not turn over it. A tractor inching round a full-lock turn is under that
         speed at 0.5 deg/s, which one epoch's mean (0.1 deg/s of noise) could not tell from
         a bias: learnt as one for the 1.5 s its first check took, it left the heading 0.5
-        deg off 30 s later.
+        deg off 30 s later. A refused span is a turn or a z bias step, which a stop cannot
+        tell apart: :meth:`_turn_or_step`.
 
         The history's rates were corrected with the z bias estimate of their time; the
         spans are fused seconds later, and what the bias has learnt since (the spans before
@@ -671,6 +677,7 @@ class EkfEngine:
         same rate again: after the bias re-opened (0.15 deg/s 1-sigma), a stop's spans
         took a +0.14 deg/s error as +0.37 and moved the heading 1.6 deg past the truth."""
         rest = self._rest_epochs
+        self._pending_turn_rad = 0.0
         if fix.sog_mps is None or fix.sog_mps >= self.cfg.stationary_speed_mps:
             rest.clear()
             return []
@@ -691,12 +698,42 @@ class EkfEngine:
                 or float(w_check[2]) ** 2 > self.cfg.gate_sigma**2 * var
             ):
                 self.counters.zero_rate_rejected += 1
+                self._turn_or_step(abs(float(w_check[2])), b - a)
                 continue
             row = hist.at(b)
             assert row is not None  # (within the history, as a is)
             w_z = float(hist.mean_rate(0.5 * (a + b), 0.5 * (b - a))[2]) - (b_z - learnt_b)
             out.append(fuse_zero_rate(row[ROW_C].reshape(3, 3), w_z, b - a, tun.q_gyro_rad2_per_s))
+        a, learnt_a = rest[0]
+        if t_e > a >= hist.oldest_s():  # the spans not checked yet: what they turned so far
+            w_z = float(hist.mean_rate(0.5 * (a + t_e), 0.5 * (t_e - a))[2]) - (b_z - learnt_a)
+            self._pending_turn_rad = abs(w_z) * (t_e - a)
         return out
+
+    def _turn_or_step(self, rate_rps: float, span_s: float) -> None:
+        """At rest the gyro turned at ``rate_rps`` beyond what the z bias explains over
+        ``span_s``: the vehicle turning on the spot, or the bias stepped and the heading
+        drifts. The stated heading takes the turn (the spans of one stop add up, as a
+        step's drift does), and the next course puts it, and the rate as a z bias, into
+        P (:meth:`_fold_rest_turn`). A step of -0.2 deg/s as `steep-turns` seed 554
+        stopped: every span refused, the heading drifted 0.2 deg/s through two stops and
+        a short reverse, NAVIGATING up to 3 deg off for 12 s (582 frames) until courses in a
+        turn showed it. The cost is a DEGRADED heading while a vehicle creeps round a turn
+        under ``stationary_speed_mps`` (or stops in one), where nothing steers on it. Not
+        into P at rest: there it let the zero velocity a creeping vehicle's fixes give
+        below ``COG_RELIABLE_SPEED_MPS`` turn the heading (2.7 deg off after 30 s creeping
+        round a full-lock turn)."""
+        self._rest_turn = (self._rest_turn[0] + rate_rps * span_s, self._rest_turn[1] + span_s)
+
+    def _fold_rest_turn(self) -> None:
+        """A course again: what the stops' refused spans turned goes into P's heading, and
+        their mean rate into P's z bias about the vertical (a step, if it was one, is then
+        learnt from the courses; a turn on the spot leaves the bias where it was)."""
+        turn, span = self._rest_turn
+        if turn > 0.0:
+            sigma = self._p_heading_sigma_rad()
+            self._reopen_vertical(turn / span, math.sqrt(turn * (2.0 * sigma + turn)))
+            self._rest_turn = (0.0, 0.0)
 
     def _course_residual(
         self, fix: GnssFix, t_e: float, row: Array, w_e: Array, sigma_v_mps: float
@@ -936,15 +973,19 @@ class EkfEngine:
         return xy_reopened_text(sigma_ba, sigma_bg)
 
     def _reopen_z(self, change: BiasChange) -> str:
-        """The z gyro bias changed beyond its in-run model: P's gyro bias about the vertical
-        re-opens by the window's rate, the heading by the angle taken
-        (:meth:`_reopen_attitude`)."""
+        """The z gyro bias changed beyond its in-run model: :meth:`_reopen_vertical` by the
+        window's rate and the angle taken."""
+        self._reopen_vertical(change.rate_rps, change.angle_rad)
+        return z_reopened_text(self._vertical_bias_sigma_rps())
+
+    def _reopen_vertical(self, rate_rps: float, angle_rad: float) -> None:
+        """P's gyro bias about the vertical re-opens by ``rate_rps``, the heading by
+        ``angle_rad`` (:meth:`_reopen_heading`)."""
         p, ins = self._p, self._ins
         assert p is not None and ins is not None
         u = ins.c_bn[2]  # the vertical in body axes
-        p[BG, BG] += change.rate_rps**2 * np.outer(u, u)
-        self._reopen_heading(change.angle_rad)
-        return z_reopened_text(self._vertical_bias_sigma_rps())
+        p[BG, BG] += rate_rps**2 * np.outer(u, u)
+        self._reopen_heading(angle_rad)
 
     def _reopen_heading(self, sigma_rad: float) -> None:
         """P's heading (about the vertical) re-opens by ``sigma_rad``
@@ -1454,14 +1495,16 @@ class EkfEngine:
         )
 
     def _heading_sigma_rad(self) -> float:
-        """The heading's 1-sigma, rad: P's (:meth:`_p_heading_sigma_rad`) with what the
-        recent heading corrections show beyond it (:meth:`CorrectionWindow.excess_rad`); pi
+        """The heading's 1-sigma, rad: P's (:meth:`_p_heading_sigma_rad`) and what the
+        gyro turned at rest beyond the z bias (:meth:`_turn_or_step`; the spans not checked
+        yet with what they turned so far), with what the recent
+        heading corrections show beyond it (:meth:`CorrectionWindow.excess_rad`); pi
         before P."""
         if self._p is None or self._ins is None:
             return math.pi
         model = self._p_heading_sigma_rad()
         excess = self._heading_corrections.excess_rad(self._arw(), model)
-        return math.sqrt(model * model + excess * excess)
+        return math.hypot(model + self._rest_turn[0] + self._pending_turn_rad, excess)
 
     def _heading_weights(self) -> tuple[float, float]:
         """:func:`heading_weights` of the INS's attitude."""
