@@ -17,6 +17,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+import numpy.typing as npt
 import pytest
 
 from drivers.logs.candump import CandumpWriter, read_candump
@@ -301,6 +302,38 @@ SLOW_REVERSE_STEP_S = 97.5
 LEVER = (0.3, 0.0, -3.0)
 
 
+def z_step_run(
+    motion: Motion, step_s: float, step_dps: float, engine: Engine
+) -> tuple[ObserverEngine | EkfEngine, npt.NDArray[np.float64], npt.NDArray[np.bool_]]:
+    """The engine after ``motion`` (the datasheet's ARW, a 0.03 deg/s z bias learnt before,
+    2 cm/s Doppler noise, seed 1) with ``step_dps`` more on the z gyro from ``step_s``;
+    its heading errors, deg, and whether it said NAVIGATING, every 0.2 s from 5 s before
+    the step."""
+    imu = imu_stream(
+        motion,
+        bias_g_rps=(0.0, 0.0, 0.03 * DEG_TO_RAD),
+        noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS,
+        noise_a_mps2=0.01,
+        seed=1,
+    )
+    imu = with_gyro_offset(imu, step_s, math.inf, (0.0, 0.0, step_dps * DEG_TO_RAD))
+    fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=1)
+    est: ObserverEngine | EkfEngine = (
+        ObserverEngine(ObserverConfig(antenna_lever_arm_m=LEVER))
+        if engine == Engine.OBSERVER
+        else EkfEngine(EkfConfig(antenna_lever_arm_m=LEVER))
+    )
+    out = [(t, s) for t, s in solutions(est, imu, fixes) if t >= step_s - 5.0]
+    c_bn = state_at(motion, np.array([t for t, _ in out])).c_bn
+    errors = [
+        math.degrees(wrap_pi(s.yaw_rad - math.atan2(c[1, 0], c[0, 0])))
+        for (_, s), c in zip(out, c_bn, strict=True)
+        if s.yaw_rad is not None
+    ]
+    assert len(errors) == len(out)
+    return est, np.array(errors), np.array([s.mode == Mode.NAVIGATING for _, s in out])
+
+
 @pytest.mark.parametrize("step_dps", [0.15, -0.3])
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF], ids=["observer", "ekf"])
 def test_a_z_step_before_a_stop_and_a_slow_reverse_is_stated_and_learnt(
@@ -317,31 +350,8 @@ def test_a_z_step_before_a_stop_and_a_slow_reverse_is_stated_and_learnt(
     the change found, the heading within 0.6 deg at the end. The EKF learns the step at the
     stop: its spans there were taken twice before (the rates' bias estimate of their time),
     +0.14 deg/s learnt as +0.37 and the heading reversing 1.4 deg off (NAVIGATING)."""
-    imu = imu_stream(
-        SLOW_REVERSE,
-        bias_g_rps=(0.0, 0.0, 0.03 * DEG_TO_RAD),
-        noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS,
-        noise_a_mps2=0.01,
-        seed=1,
-    )
-    imu = with_gyro_offset(imu, SLOW_REVERSE_STEP_S, math.inf, (0.0, 0.0, step_dps * DEG_TO_RAD))
-    fixes = gnss_stream(SLOW_REVERSE, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=1)
-    est: ObserverEngine | EkfEngine = (
-        ObserverEngine(ObserverConfig(antenna_lever_arm_m=LEVER))
-        if engine == Engine.OBSERVER
-        else EkfEngine(EkfConfig(antenna_lever_arm_m=LEVER))
-    )
-    out = [(t, s) for t, s in solutions(est, imu, fixes) if t >= SLOW_REVERSE_STEP_S - 5.0]
-    c_bn = state_at(SLOW_REVERSE, np.array([t for t, _ in out])).c_bn
-    errors = np.array(
-        [
-            math.degrees(wrap_pi(s.yaw_rad - math.atan2(c[1, 0], c[0, 0])))
-            for (_, s), c in zip(out, c_bn, strict=True)
-            if s.yaw_rad is not None
-        ]
-    )
-    navigating = np.array([s.mode == Mode.NAVIGATING for _, s in out])
-    assert len(errors) == len(out) > 200  # every 0.2 s
+    est, errors, navigating = z_step_run(SLOW_REVERSE, SLOW_REVERSE_STEP_S, step_dps, engine)
+    assert len(errors) > 200  # every 0.2 s
     assert np.max(np.abs(errors[navigating])) < 0.1 + 3 * 0.5
     assert est.counters.bias_changes >= 1
     assert abs(errors[-1]) < 0.6
@@ -380,30 +390,7 @@ def test_a_z_step_as_the_vehicle_stops_is_stated_at_rest_and_learnt(engine: Engi
     1.9 deg here. Now what the refused spans turned is in the stated heading, and with
     the next course in P with their rate as a z bias: no NAVIGATING heading beyond 0.1 +
     3 x 0.5 deg, the step learnt by the end (heading within 0.5 deg)."""
-    imu = imu_stream(
-        STOP_REVERSE_STOP,
-        bias_g_rps=(0.0, 0.0, 0.03 * DEG_TO_RAD),
-        noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS,
-        noise_a_mps2=0.01,
-        seed=1,
-    )
-    imu = with_gyro_offset(imu, STOP_STEP_S, math.inf, (0.0, 0.0, -0.2 * DEG_TO_RAD))
-    fixes = gnss_stream(STOP_REVERSE_STOP, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=1)
-    est: ObserverEngine | EkfEngine = (
-        ObserverEngine(ObserverConfig(antenna_lever_arm_m=LEVER))
-        if engine == Engine.OBSERVER
-        else EkfEngine(EkfConfig(antenna_lever_arm_m=LEVER))
-    )
-    out = [(t, s) for t, s in solutions(est, imu, fixes) if t >= STOP_STEP_S - 5.0]
-    c_bn = state_at(STOP_REVERSE_STOP, np.array([t for t, _ in out])).c_bn
-    errors = np.array(
-        [
-            math.degrees(wrap_pi(s.yaw_rad - math.atan2(c[1, 0], c[0, 0])))
-            for (_, s), c in zip(out, c_bn, strict=True)
-            if s.yaw_rad is not None
-        ]
-    )
-    navigating = np.array([s.mode == Mode.NAVIGATING for _, s in out])
-    assert len(errors) == len(out) > 150  # every 0.2 s
+    _, errors, navigating = z_step_run(STOP_REVERSE_STOP, STOP_STEP_S, -0.2, engine)
+    assert len(errors) > 150  # every 0.2 s
     assert np.max(np.abs(errors[navigating])) < 0.1 + 3 * 0.5
     assert abs(errors[-1]) < 0.5
