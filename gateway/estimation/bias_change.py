@@ -138,6 +138,7 @@ class CorrectionWindow:
         self.angle_rad = 0.0  # the window's sum, magnitude
         self._courses: deque[tuple[float, float, float]] = deque()  # (t, 1/sigma^2, r/sigma^2)
         self._sum_w = self._sum_wr = 0.0
+        self._ratio: tuple[float, float] | None = None  # _course_ratio's, till the next add
         self._t_change_s = -math.inf  # the last change that re-opened the biases
         self._above_since_s: float | None = None  # beyond K_SUSTAINED since then
 
@@ -151,6 +152,7 @@ class CorrectionWindow:
     ) -> None:
         """A correction applied at ``t_s`` with the angle's and the gyro bias's 1-sigmas
         stated before it; those older than the window are dropped."""
+        self._ratio = None
         recent = self._recent
         recent.append((t_s, d_n_rad, d_e_rad))
         self._sum_n += d_n_rad
@@ -172,6 +174,7 @@ class CorrectionWindow:
         self._sum_n = self._sum_e = self.angle_rad = 0.0
         self._courses.clear()
         self._sum_w = self._sum_wr = 0.0
+        self._ratio = None
         self._above_since_s = None
 
     def add_course(
@@ -189,6 +192,7 @@ class CorrectionWindow:
         interval, half of it behind the heading in a turn: that is in its sigma (a 1 Hz
         receiver's courses were 3.5 deg behind at 11 deg/s, five times their noise at
         1.3 m/s, and the observer found a change in each U-turn it drove off into)."""
+        self._ratio = None
         lag_rad = 0.5 * yaw_rate_rps * interval_s
         w = 1.0 / (sigma_rad * sigma_rad + lag_rad * lag_rad)
         self._courses.append((t_s, w, w * residual_rad))
@@ -207,11 +211,15 @@ class CorrectionWindow:
         """The courses' weighted mean offset magnitude, rad, and its ratio to its 1-sigma
         with the largest heading sigma stated in the window; (0, 0) before the courses span
         :data:`COURSES_SPAN_S`."""
-        courses = self._courses
-        if not courses or courses[-1][0] - courses[0][0] < COURSES_SPAN_S:
-            return 0.0, 0.0
-        offset = abs(self._sum_wr / self._sum_w)
-        return offset, offset / math.sqrt(self._sigma_angle.value**2 + 1.0 / self._sum_w)
+        if self._ratio is None:
+            courses = self._courses
+            if not courses or courses[-1][0] - courses[0][0] < COURSES_SPAN_S:
+                self._ratio = (0.0, 0.0)
+            else:
+                offset = abs(self._sum_wr / self._sum_w)
+                sigma = math.sqrt(self._sigma_angle.value**2 + 1.0 / self._sum_w)
+                self._ratio = (offset, offset / sigma)
+        return self._ratio
 
     def explained_rad(self, arw_rad_per_sqrt_s: float, sigma_angle_rad: float) -> float:
         """1-sigma of the sum the model explains: the gyro's ARW over the window, the gyro

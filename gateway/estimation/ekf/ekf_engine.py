@@ -686,12 +686,14 @@ class EkfEngine:
         b_z = ins.bias_g_rps[2]
         rest.append((t_e, b_z))
         out: list[Measurement] = []
+        w_check_z = None
         while len(rest) > 1 and rest[1][0] <= t_e - ZERO_RATE_CHECK_S:
             (a, learnt_a), (b, learnt_b) = rest.popleft(), rest[0]
             if a < hist.oldest_s():
                 continue
             w_check = hist.mean_rate(0.5 * (a + t_e), 0.5 * (t_e - a))
             w_check[2] -= b_z - 0.5 * (learnt_a + b_z)  # (the estimate's mean over the check)
+            w_check_z = float(w_check[2])
             var = p[BG.start + 2, BG.start + 2] + tun.q_gyro_rad2_per_s / (t_e - a)
             if (
                 float(np.linalg.norm(w_check)) >= self.cfg.stationary_rate_dps * DEG_TO_RAD
@@ -704,10 +706,14 @@ class EkfEngine:
             assert row is not None  # (within the history, as a is)
             w_z = float(hist.mean_rate(0.5 * (a + b), 0.5 * (b - a))[2]) - (b_z - learnt_b)
             out.append(fuse_zero_rate(row[ROW_C].reshape(3, 3), w_z, b - a, tun.q_gyro_rad2_per_s))
+        # the spans not checked yet: what they turned so far, at the last check's mean rate
+        # (over them and one span more), or in a stop's first seconds at their own
         a, learnt_a = rest[0]
-        if t_e > a >= hist.oldest_s():  # the spans not checked yet: what they turned so far
-            w_z = float(hist.mean_rate(0.5 * (a + t_e), 0.5 * (t_e - a))[2]) - (b_z - learnt_a)
-            self._pending_turn_rad = abs(w_z) * (t_e - a)
+        if w_check_z is None and t_e > a >= hist.oldest_s():
+            w_check_z = float(hist.mean_rate(0.5 * (a + t_e), 0.5 * (t_e - a))[2])
+            w_check_z -= b_z - learnt_a
+        if w_check_z is not None:
+            self._pending_turn_rad = abs(w_check_z) * (t_e - a)
         return out
 
     def _turn_or_step(self, rate_rps: float, span_s: float) -> None:
