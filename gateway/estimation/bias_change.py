@@ -177,6 +177,13 @@ class CorrectionWindow:
         self._ratio = None
         self._above_since_s = None
 
+    def forget(self, arw_rad_per_sqrt_s: float, sigma_angle_rad: float) -> float:
+        """End the window (a stop, the gates closing): its :meth:`excess_rad`, rad, which the
+        engine keeps in its variance, and the window cleared."""
+        excess = self.excess_rad(arw_rad_per_sqrt_s, sigma_angle_rad)
+        self.clear()
+        return excess
+
     def add_course(
         self,
         t_s: float,

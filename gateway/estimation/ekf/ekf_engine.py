@@ -192,7 +192,6 @@ class EkfEngine:
         self._log = LogLimiter(log)
         self._corrections = CorrectionWindow("tilt")  # recent attitude corrections: a bias change?
         self._heading_corrections = CorrectionWindow("heading")  # the same for the z bias
-        self._at_rest_epoch = False  # the last epoch's speed was under the stationary one
         # turned at rest beyond the z bias since the last course, rad, over refused spans, s
         self._rest_turn = (0.0, 0.0)
         self._pending_turn_rad = 0.0  # turned in the rest spans not checked yet
@@ -618,9 +617,8 @@ class EkfEngine:
             if course is not None:
                 self._fold_rest_turn()
         at_rest = fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps
-        if at_rest and not self._at_rest_epoch:
+        if at_rest and not self._rest_epochs:  # (the last epoch was not at rest)
             self._forget_heading_corrections()
-        self._at_rest_epoch = at_rest
         if fix.heading_rad is not None:
             measurements.append(
                 fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD)
@@ -1004,11 +1002,9 @@ class EkfEngine:
         """A stop: the heading window ends, and what it showed beyond P's heading stays in
         P until courses take it (aging out of the window through the stop, a z step's
         excess was forgotten)."""
-        window = self._heading_corrections
-        excess = window.excess_rad(self._arw(), self._p_heading_sigma_rad())
+        excess = self._heading_corrections.forget(self._arw(), self._p_heading_sigma_rad())
         if excess > 0.0:
             self._reopen_heading(excess)
-        window.clear()
 
     def _noise_as_measured(self, tun: EkfTuning) -> EkfTuning:
         """The white rate and acceleration noise the IMU showed at rest, where it is more

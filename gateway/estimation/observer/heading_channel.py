@@ -342,9 +342,7 @@ class HeadingChannel:
         until references take it. A z step found in a U-turn at 1.5 m/s, stated 0.5 deg
         beyond, aged out of the window through the stop after it, and the vehicle
         reversed saying NAVIGATING 2.9 deg off."""
-        window = self._corrections
-        self._p_psi_rad2 += window.excess_rad(self._arw, sigma_rad) ** 2
-        window.clear()
+        self._p_psi_rad2 += self._corrections.forget(self._arw, sigma_rad) ** 2
 
     def _match_gap_residual(self, r_rad: float, sigma_ref_rad: float) -> None:
         """The first reference after a gap (an outage): a residual beyond 3 sigma of the
