@@ -98,8 +98,11 @@ def test_a_ten_minute_stop_holds_the_heading_and_says_navigating(
 def test_inching_round_a_full_lock_turn_is_not_taken_for_a_gyro_bias(name: str) -> None:
     """After the stop, 30 s turning at 0.5 deg/s on the spot: under the stationary speed
     (a tractor inching round a 4 m turn does 3.5 cm/s), but a turn. It is not held and not
-    learnt as a z bias: the heading follows it (the bias's error over 30 s is 0.3 deg at
-    0.01 deg/s) and is within 0.35 deg of the truth when it ends."""
+    learnt as a z bias: the heading follows it and is within 1 deg of the truth when it
+    ends, 3 sigma of the learnt bias's error over 30 s (0.3 deg at 0.01 deg/s) and the
+    gyro's random walk (0.18 deg); learnt as a bias the turn would leave it 15 deg off.
+    (The bound was 0.35 deg, about 1.2 sigma: seeds 1-7 of this drive end 0.09-0.50 deg
+    off, the RMS 0.3, whichever way the heading is aligned.)"""
     turn = Motion(
         [*MOTION.segments[:6], Segment(20.0), Segment(30.0, yaw_rate_rps=0.5 * DEG_TO_RAD)],
         yaw0_rad=MOTION.yaw0_rad,
@@ -111,7 +114,7 @@ def test_inching_round_a_full_lock_turn_is_not_taken_for_a_gyro_bias(name: str) 
     assert t_end > turn.duration_s - 0.5 and sol.yaw_rad is not None
     c_bn = state_at(turn, np.array([t_end])).c_bn[0]
     error_deg = math.degrees(wrap_pi(sol.yaw_rad - math.atan2(c_bn[1, 0], c_bn[0, 0])))
-    assert abs(error_deg) < 0.35, error_deg
+    assert abs(error_deg) < 1.0, error_deg
 
 
 @pytest.fixture(scope="module")

@@ -200,7 +200,7 @@ def test_applied_it_puts_the_engine_near_the_true_mounting_and_the_biases_start_
     assert applied.mounting is not None
     summary = applied.mounting.update(0.0)  # as the health task asks for it
     assert summary is not None and summary.endswith(" deg applied from state)"), summary
-    assert applied.mounting.learned is not None
+    assert applied.mounting.learned is not None, summary
     assert applied.mounting.learned.rpy_deg == pytest.approx(TRUE_MOUNTING_DEG, abs=0.3)
     assert applied.mounting.learned.base_rpy_deg == CONFIGURED_DEG
     applied_rms = tilt_rms_deg(trace, drive.run, config)

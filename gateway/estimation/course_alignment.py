@@ -1,4 +1,4 @@
-"""The first heading from the courses of the last second, not of one epoch (both engines).
+"""The first heading from the recent courses, not from one epoch (both engines).
 
 Before the heading is known the platform's yaw is arbitrary, but the gyro carries it from
 epoch to epoch. Each epoch's course (the reference point's, from the antenna's with the lever
@@ -10,7 +10,8 @@ a slope (slope-start seed 540), its heading channel stating 0.74; the EKF, align
 course with 3 deg stated, said DEGRADED for 0.8-1.8 s until its filter had averaged the
 courses itself. The offsets of the epochs within :data:`ALIGN_WINDOW_S`, each weighed by its
 course's sigma, average that noise down; the z-gyro bias, which turned the platform between
-them, adds its share.
+them, adds its share. A vehicle slower than the alignment speed waits for more of them
+(:data:`SLOW_ALIGN_WINDOW_S`) and for the direction of travel (:func:`direction_known`).
 """
 
 from __future__ import annotations
@@ -18,10 +19,25 @@ from __future__ import annotations
 import math
 from collections import deque
 
-from drivers.units import wrap_pi
+from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, wrap_pi
 
-#: Courses this recent make the first heading, s.
+#: Courses this recent make the first heading at the alignment speed, s ...
 ALIGN_WINDOW_S = 1.0
+#: ... and under it, once they give NAVIGATING's accuracy (:meth:`CourseAlignment.alignment`).
+SLOW_ALIGN_WINDOW_S = 10.0
+#: Forward or reversing after a rest, before the heading is known: the inertial velocity
+#: change along body x, once it exceeds this many sigma of what the tilt puts into it and
+#: this floor (m/s: the engine vibration integrated over the first epochs).
+DIRECTION_SIGMAS = 3.0
+DIRECTION_DV_FLOOR_MPS = 0.02
+
+
+def direction_known(dv_x_mps: float, sigma_tilt_rad: float, since_s: float) -> bool:
+    """Does the inertial velocity change along body x since a rest, ``dv_x_mps`` after
+    ``since_s``, tell forward from reversing? Beyond :data:`DIRECTION_SIGMAS` of the tilt's
+    share, g theta t, and :data:`DIRECTION_DV_FLOOR_MPS`."""
+    sigma_dv = GRAVITY_MPS2 * sigma_tilt_rad * since_s + DIRECTION_DV_FLOOR_MPS
+    return abs(dv_x_mps) >= DIRECTION_SIGMAS * sigma_dv
 
 
 class CourseAlignment:
@@ -36,21 +52,46 @@ class CourseAlignment:
     def add(self, t_s: float, offset_rad: float, sigma_rad: float) -> None:
         """One epoch: its course less the platform's yaw at ``t_s``, and the course's sigma."""
         self._epochs.append((t_s, offset_rad, sigma_rad))
-        while self._epochs and self._epochs[0][0] < t_s - ALIGN_WINDOW_S:
+        while self._epochs and self._epochs[0][0] < t_s - SLOW_ALIGN_WINDOW_S:
             self._epochs.popleft()
 
     def clear(self) -> None:
         """The platform's yaw was set, or no longer continues the epochs' (a restart)."""
         self._epochs.clear()
 
-    def offset(self, sigma_bz_rps: float) -> tuple[float, float]:
-        """(offset, 1-sigma) rad of the epochs added, the latest last: their weighted mean,
-        and its sigma with the z-gyro bias's turn of the platform over their mean age."""
+    def alignment(
+        self,
+        sigma_bz_rps: float,
+        speed_mps: float,
+        align_speed_mps: float,
+        navigating_sigma_deg: float,
+        direction_known: bool,
+    ) -> tuple[float, float] | None:
+        """(offset, 1-sigma) rad to align on now, or None: at ``align_speed_mps`` the last
+        :data:`ALIGN_WINDOW_S`'s courses; slower, those of :data:`SLOW_ALIGN_WINDOW_S`, once
+        they give the heading within NAVIGATING's 1-sigma and the direction of travel is
+        known. Why: a vineyard tractor at 1 m/s, a planter at 0.5, never reach 1.5 m/s, and
+        both engines stayed ALIGNING, no heading and no position, for a whole 21-minute run.
+        The alignment speed stands for "forward" (vehicles reverse slower): under it, a
+        restart while reversing at 0.8 m/s aligned 180 deg off until the direction was asked
+        for. The short window stays at speed: there the slower courses of a pull-away, the
+        mast rocking, took the first heading 0.7 deg off where the last second's are 0.3."""
+        if speed_mps >= align_speed_mps:
+            return self.offset(sigma_bz_rps, ALIGN_WINDOW_S)
+        if not direction_known:
+            return None
+        offset = self.offset(sigma_bz_rps, SLOW_ALIGN_WINDOW_S)
+        return offset if offset[1] <= navigating_sigma_deg * DEG_TO_RAD else None
+
+    def offset(self, sigma_bz_rps: float, window_s: float) -> tuple[float, float]:
+        """(offset, 1-sigma) rad of the epochs of the last ``window_s``, the latest last:
+        their weighted mean, and its sigma with the z-gyro bias's turn of the platform over
+        their mean age."""
         t_last, anchor, _ = self._epochs[-1]
         weight = mean = age = 0.0
         for t_s, offset_rad, sigma_rad in self._epochs:
             d = wrap_pi(offset_rad - anchor)
-            if abs(d) > self._gate_rad:
+            if abs(d) > self._gate_rad or t_s < t_last - window_s:
                 continue
             w = 1.0 / (sigma_rad * sigma_rad)
             weight += w

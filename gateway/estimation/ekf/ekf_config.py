@@ -92,8 +92,12 @@ class EkfConfig:
     # --- initial alignment ---
     align_quiet_rate_dps: float = 2.0  # |w| below this counts as still
     align_tilt_time_s: float = 1.0  # mean specific force over this long gives roll/pitch
-    align_min_speed_mps: float = 1.5  # first heading at this speed, from the courses ...
-    cog_min_speed_mps: float = 1.0  # ... over ground of the last second above this
+    # first heading at this speed from the last second's courses over ground, slower once
+    # the last seconds' give NAVIGATING's accuracy and the direction of travel is known
+    align_min_speed_mps: float = 1.5
+    # a course over ground is a heading measurement above this: the receiver's course hold
+    # speed, as the observer's (1 m/s: a planter at 0.5-0.9 m/s gave the EKF none)
+    cog_min_speed_mps: float = 0.5
     heading_gate_deg: float = 10.0  # a course this far off the latest one's is another drive
     align_vel_sigma_mps: float = 0.1  # velocity 1-sigma at alignment (lever arm, latency)
 

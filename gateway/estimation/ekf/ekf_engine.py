@@ -70,7 +70,7 @@ from gateway.estimation.bias_change import (
     z_reopened_text,
 )
 from gateway.estimation.chassis import CHASSIS_PITCH_SIGMA_RAD
-from gateway.estimation.course_alignment import CourseAlignment
+from gateway.estimation.course_alignment import CourseAlignment, direction_known
 from gateway.estimation.ekf.ekf_config import EkfConfig, EkfTuning
 from gateway.estimation.ekf.error_state import (
     ATT,
@@ -268,6 +268,7 @@ class EkfEngine:
         self._seed_var_g = np.zeros(3)
         self._rest_mean_g_rps: list[float] = []  # mean rate of the last window at rest
         self._t_rest_epoch_s: float | None = None  # last epoch at rest before alignment
+        self._v_rest_ned_mps: Array | None = None  # the INS velocity at that epoch
         # epochs at rest since the last that was not, not yet zero-rate updated from, with
         # the z gyro bias estimate the rates before them were corrected with, rad/s
         self._rest_epochs: deque[tuple[float, float]] = deque()
@@ -567,7 +568,7 @@ class EkfEngine:
             return
         if self._p is None:
             if fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps:
-                self._t_rest_epoch_s = t_e
+                self._t_rest_epoch_s, self._v_rest_ned_mps = t_e, row[ROW_V].copy()
             self._align_heading(fix, t_e, row)
             return
         if self._hist.spacing(t_e) > MAX_IMU_STEP_S:
@@ -1030,11 +1031,11 @@ class EkfEngine:
     def _course_offset(
         self, fix: GnssFix, t_e: float, row: Array, yaw_e: float
     ) -> tuple[float, float] | None:
-        """The platform's azimuth error at ``t_e`` and its 1-sigma, rad, from the courses of
-        the last second (:class:`CourseAlignment`), once the antenna moves at
-        ``align_min_speed_mps``; None before. Each course from ``cog_min_speed_mps`` on is
-        added, its sigma the fix velocity's and the antenna lever arm's gyro noise over the
-        speed."""
+        """The platform's azimuth error at ``t_e`` and its 1-sigma, rad, from the recent
+        courses (:meth:`CourseAlignment.alignment`: at ``align_min_speed_mps``, or slower once
+        they are good enough and the direction of travel is known); None before. Each
+        course from ``cog_min_speed_mps`` on is added, its sigma the fix velocity's and the
+        antenna lever arm's gyro noise over the speed."""
         vel = fix.vel_ne_mps
         speed = 0.0 if vel is None else math.hypot(*vel)
         measured = self._gnss_velocity(fix)
@@ -1045,11 +1046,13 @@ class EkfEngine:
         course = heading_from_antenna_course(vel, row[ROW_C], w_e, self._l_ant_b, forward)
         sigma_v = math.hypot(measured[1], sig_lever)
         self._courses.add(t_e, wrap_pi(course - yaw_e), sigma_v / speed)
-        if speed < self.cfg.align_min_speed_mps:
-            return None
         bz_var = self._seed_var_g[2] if self._seed is not None else None
         sig_bz = math.sqrt(bz_var) if bz_var is not None else self._levelled_gyro_bias_sigma_rps()
-        return self._courses.offset(sig_bz)
+        cfg = self.cfg
+        known = self._hint is not None or self._direction_known(t_e, row)
+        return self._courses.alignment(
+            sig_bz, speed, cfg.align_min_speed_mps, cfg.navigating_heading_sigma_deg, known
+        )
 
     def _forward_at(self, vel_ne_mps: tuple[float, float], row: Array, w_e: Array) -> bool:
         """Driving forward at ``row``, the antenna moving at ``vel_ne_mps``: as the heading
@@ -1064,15 +1067,29 @@ class EkfEngine:
 
     def _forward_since_rest(self, row: Array) -> bool:
         """Driving forward at ``row``: its INS velocity against that of the last epoch at
-        rest along body x (:func:`along_body_x`); forward if that rest is not in
-        the history."""
-        assert self._hist is not None
-        rest = None if self._t_rest_epoch_s is None else self._hist.at(self._t_rest_epoch_s)
-        if rest is None:
-            return True
-        dv = row[ROW_V] - rest[ROW_V]
+        rest along body x (:func:`along_body_x`); forward if there was none."""
+        dv_x = self._dv_x_since_rest(row)
+        return dv_x is None or dv_x >= 0.0
+
+    def _dv_x_since_rest(self, row: Array) -> float | None:
+        """The INS velocity change along body x from the last epoch at rest to ``row``,
+        m/s; None without one."""
+        if self._v_rest_ned_mps is None:
+            return None
+        dv = row[ROW_V] - self._v_rest_ned_mps
         c = to_mat9(row[ROW_C].reshape(3, 3))
-        return along_body_x(float(dv[0]), float(dv[1]), c) >= 0.0
+        return along_body_x(float(dv[0]), float(dv[1]), c)
+
+    def _direction_known(self, t_e: float, row: Array) -> bool:
+        """Does the velocity change since the last rest tell forward from reversing at
+        ``row`` (epoch time ``t_e``), before the heading is known? Beyond what the levelled
+        tilt puts into it (:func:`direction_known`)."""
+        dv_x = self._dv_x_since_rest(row)
+        if dv_x is None or self._t_rest_epoch_s is None:
+            return False
+        sig_bg = self._levelled_gyro_bias_sigma_rps()
+        sig_tilt = math.hypot(sig_bg * max(0.0, t_e - self._t_levelled_s), self._sigma_level_rad)
+        return direction_known(dv_x, sig_tilt, t_e - self._t_rest_epoch_s)
 
     def _levelled_gyro_bias_sigma_rps(self) -> float:
         """Gyro bias 1-sigma before the filter runs: the seed's (x/y, with the rest mean's),

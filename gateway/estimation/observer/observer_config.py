@@ -89,7 +89,9 @@ class ObserverConfig:
     # --- initial alignment ---
     align_quiet_rate_dps: float = 2.0  # |w| below this counts as straight or still
     align_tilt_time_s: float = 1.0  # mean specific force over this long gives roll/pitch
-    align_min_speed_mps: float = 1.5  # first course over ground used at this speed
+    # first heading at this speed from the last second's courses over ground, slower once
+    # the last seconds' give NAVIGATING's accuracy and the direction of travel is known
+    align_min_speed_mps: float = 1.5
 
     # --- heading channel (ALGORITHMS.md 2, seed 001) ---
     tau_heading_s: float = 2.0  # heading time constant of an epoch after a gap (no gain)

@@ -45,7 +45,11 @@ from gateway.estimation.bias_change import (
     xy_reopened_text,
     z_reopened_text,
 )
-from gateway.estimation.course_alignment import CourseAlignment
+from gateway.estimation.course_alignment import (
+    DIRECTION_SIGMAS,
+    CourseAlignment,
+    direction_known,
+)
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.engine_base import (
     HeldEpochs,
@@ -127,14 +131,6 @@ HEIGHT_LOOP_TAU_S = 0.3
 #: body x, s (:meth:`ObserverEngine._velocity_along_body_x`): the direction of travel is
 #: the one taken when leaving the rest, and a wheeled vehicle reverses only through a stop.
 BODY_X_LOOP_S = 5.0
-#: Forward or reversing after a rest, before the heading is known: the inertial velocity
-#: change along body x, once it exceeds this many sigma of what the tilt left by a levelling
-#: on a moving window and this floor (m/s: the engine vibration integrated over the first
-#: epochs) put into it (:meth:`ObserverEngine._velocity_along_body_x`). With the heading
-#: known, under a held course, the engine's own velocity along body x beyond this many sigma
-#: of the fix's velocity noise (:meth:`ObserverEngine._antenna_velocity`).
-DIRECTION_SIGMAS = 3.0
-DIRECTION_DV_FLOOR_MPS = 0.02
 #: A speed beyond this many sigma of the fix's velocity noise is creeping, not standing still.
 CREEP_SIGMAS = 3.0
 #: Gaps in the IMU stream are differenced across by eq. (3) while this many 1-sigma of the
@@ -283,6 +279,9 @@ class ObserverEngine:
         self._prev_rest_row: _Row | None = None  # newest row when last levelled at rest
         self._rest_last_row: _Row | None = None  # newest row at the last epoch at rest
         self._coasting = False  # GNSS velocity timed out: platform open loop
+        # epoch time the tilt loop was left open with velocity flowing (moving before the
+        # heading is known, glitches rejected): it drifts as in a coast (:meth:`_open_s`)
+        self._t_open_s: float | None = None
         self._coast_budget: CoastBudget | None = None  # error sources as the outage began
         self._ground = GroundResidual()  # what the coast's constraint takes out: roll's e
         # learning gates and convergence bookkeeping
@@ -721,8 +720,7 @@ class ObserverEngine:
         if self._coasting:
             # the coast's open-loop drift is still in the tilt: it decays with the loop from
             # here (it went from 0.61 deg stated to 0.09 at once, 0.43 deg off: outages 31)
-            drift = self._coast_drift_rad(self._coasting_s())
-            self._sigma_level_rad = math.hypot(self._sigma_level_rad, drift)
+            self._close_open_span(self._open_s(fix.t))
         self._t_vel_rx_s = fix.t
         self._coasting = False
         # at rest in translation: v = 0 is then a velocity reference in any azimuth, so the
@@ -913,7 +911,9 @@ class ObserverEngine:
         f = level.f_b_mps2  # bias-corrected: level on -f
         self._rotate_platform(levelling_correction(obs.c_bp9, (-f[0], -f[1], -f[2])))
         self._set_tilt_open(t_e)
-        # what a levelling on a moving window or a coast left in the tilt is gone with it
+        # what a levelling on a moving window, a coast or an open loop left in the tilt is
+        # gone with it
+        self._t_open_s = None
         if level.sigma_tilt_rad < self._sigma_level_rad:
             self._sigma_level_rad, self._sigma_level_held = level.sigma_tilt_rad, 0.0
         self._ba_tilt_ne = self._ba_tilt_held_ne = (0.0, 0.0)
@@ -1214,8 +1214,7 @@ class ObserverEngine:
             # 0.1 m/s of true speed; decided there, the heading aligned 180 deg off for good,
             # and the tilt went 13 deg off: steep-turns seed 94 with a stall at 160 s)
             sigma_theta = math.sqrt(self._sigma_level_rad**2 + self._noise_tilt_var)
-            sigma_dv = GRAVITY_MPS2 * sigma_theta * since_s + DIRECTION_DV_FLOOR_MPS
-            self._forward_known = abs(dv_x) >= DIRECTION_SIGMAS * sigma_dv
+            self._forward_known = direction_known(dv_x, sigma_theta, since_s)
             if not self._forward_known:
                 return None
         if since_s > BODY_X_LOOP_S:
@@ -1308,7 +1307,7 @@ class ObserverEngine:
             or prev[0] < self._gap_end_s  # the interval spans a chain-ending gap
         ):
             self._prev_epoch, self._gap_dv_var = current, 0.0
-            self._set_tilt_open(t_e)
+            self._leave_open(t_e)
             return False
         _, vn_prev, ve_prev, prow = prev
         e_n = (v_imu_n - vn_prev) / interval_s - (row[_SF_N] - prow[_SF_N]) / interval_s
@@ -1323,7 +1322,7 @@ class ObserverEngine:
             if self._rejecting_since_s is None:
                 self._rejecting_since_s = t_e
             if self._velocity_rejected(t_e):
-                self._set_tilt_open(t_e)
+                self._leave_open(t_e)
                 return True
             # rejected this long: the platform is off, not the GNSS; correct, clipped
             e_n, e_e = e_n * gate_mps / mismatch_mps, e_e * gate_mps / mismatch_mps
@@ -1331,8 +1330,10 @@ class ObserverEngine:
                 self._ba_filter.lose_tilt(t_e, obs.c_bp9)
         self._prev_epoch, self._gap_dv_var = current, 0.0
         if not closed:
-            self._set_tilt_open(t_e)
+            self._leave_open(t_e)
             return False
+        if self._t_open_s is not None:
+            self._close_open_span(t_e - self._t_open_s)
         u_ne = self._tilt_loop.control((e_n, e_e), interval_s, period_s, sigma_v)
         obs.correct_tilt(*u_ne)
         self._watch_corrections(t_e, u_ne, period_s)
@@ -1509,6 +1510,27 @@ class ObserverEngine:
         if self._ba_filter is not None and t_s is not None:
             self._ba_filter.open(t_s, obs.c_bp9)
 
+    def _leave_open(self, t_e: float) -> None:
+        """The epoch at ``t_e`` leaves the tilt loop open: the open span starts, if new."""
+        self._set_tilt_open(t_e)
+        if self._t_open_s is None:
+            self._t_open_s = t_e
+
+    def _close_open_span(self, open_s: float) -> None:
+        """The loop closes after ``open_s`` open (a coast, or epochs that left it open): the
+        drift of that span stays in the stated tilt and decays with the loop from here."""
+        self._sigma_level_rad = math.hypot(self._sigma_level_rad, self._coast_drift_rad(open_s))
+        self._t_open_s = None
+
+    def _open_s(self, t_s: float) -> float:
+        """How long the tilt loop has run open at ``t_s``: through a coast
+        (:meth:`_coasting_s`) or since an epoch left it open on the move. Before the heading
+        is known the loop closes on the speed along body x for :data:`BODY_X_LOOP_S` after
+        a rest only: a vehicle driving on under ``align_min_speed_mps`` drifted open loop,
+        roll 1.9 deg off in 100 s with the 0.59 deg stated at levelling."""
+        since = 0.0 if self._t_open_s is None else max(0.0, t_s - self._t_open_s)
+        return max(self._coasting_s(), since)
+
     def _rotate_platform(self, phi_rad: Float3) -> None:
         """C <- exp([phi]x) C (a levelling): the accel-bias filter's tilt error moves with it."""
         assert self._observer is not None
@@ -1620,10 +1642,16 @@ class ObserverEngine:
             elif speed_ref_mps >= cfg.cog_min_speed_mps:
                 sigma_v = math.hypot(cfg.gnss_vel_sigma_mps, self._ant_lever_sigma_mps())
                 self._courses.add(t_e, wrap_pi(cog_ref_rad - row[_PSI]), sigma_v / speed_ref_mps)
-                if speed_ref_mps < cfg.align_min_speed_mps:
+                found = self._courses.alignment(
+                    self._heading.kf.sigma_rps,
+                    speed_ref_mps,
+                    cfg.align_min_speed_mps,
+                    cfg.navigating_heading_sigma_deg,
+                    self._forward_known,
+                )
+                if found is None:
                     return
-                offset, sigma = self._courses.offset(self._heading.kf.sigma_rps)
-                target = row[_PSI] + offset
+                target, sigma = row[_PSI] + found[0], found[1]
             else:
                 return
             # yaw at t_e is psi_e; move it onto the reference, keep the gyro motion since t_e
@@ -1886,9 +1914,8 @@ class ObserverEngine:
             return Solution(mode=Mode.INITIALISING, **common_fields(self._t_s, fix, self._imu))
         c9 = obs.c_bp9
         roll, pitch, yaw = rpy_from_mat9(c9)
-        coasting_v_s = self._coasting_s()  # the velocity's: the tilt's drift
         coasting_s = max(  # the position's (:func:`gap_beyond_s`)
-            coasting_v_s, gap_beyond_s(self._t_s, self._t_pos_rx_s, self.cfg.gnss_timeout_s)
+            self._coasting_s(), gap_beyond_s(self._t_s, self._t_pos_rx_s, self.cfg.gnss_timeout_s)
         )
         gnss_ok = (
             fix is not None
@@ -1923,7 +1950,7 @@ class ObserverEngine:
             wrap_pi(yaw - self._heading_to_turn_rad(t)) if self._heading_aligned else None,
             self._yaw_rate_rps(c9),
             lat, lon, alt, vel, obs.bg_hat_rps, obs.ba_hat_mps2,
-            self._sigma_tilt_rad(coasting_v_s),
+            self._sigma_tilt_rad(self._open_s(t)),
             quality, sats, hdop, age, geoid, station, talker,
             gnss_ok, imu.ok, imu.alarm,  # gnss_ok, imu_ok, imu_alarm
             self._heading.reversing, self._stationary, coasting_s > 0.0,  # ... coasting
@@ -2033,17 +2060,18 @@ class ObserverEngine:
         decay = math.exp(-self._az_learn_s / self.cfg.accel_bias_z_tau_s)
         return max(sigma0 * decay, ACCEL_BIAS_Z_FLOOR_MPS2 * self._floor_scale)
 
-    def _coast_drift_rad(self, coasting_s: float) -> float:
-        """1-sigma of the tilt's open-loop drift after ``coasting_s``: the x/y gyro bias's
-        b_g t and the ARW's random walk ARW sqrt(t) (0.067 deg after 4 s: left out, an outage
-        on seed 95 of `outages` drifted 0.3 deg in 7 s with 0.04 stated)."""
-        return math.hypot(self._sigma_bg_rps() * coasting_s, self._gyro_arw * math.sqrt(coasting_s))
+    def _coast_drift_rad(self, open_s: float) -> float:
+        """1-sigma of the tilt's open-loop drift after ``open_s`` (a coast, :meth:`_open_s`):
+        the x/y gyro bias's b_g t and the ARW's random walk ARW sqrt(t) (0.067 deg after 4 s:
+        left out, an outage on seed 95 of `outages` drifted 0.3 deg in 7 s with 0.04
+        stated)."""
+        return math.hypot(self._sigma_bg_rps() * open_s, self._gyro_arw * math.sqrt(open_s))
 
-    def _sigma_tilt_rad(self, coasting_s: float) -> float:
+    def _sigma_tilt_rad(self, open_s: float) -> float:
         """Roll/pitch 1-sigma: :meth:`_model_tilt_var`'s, and what the loop's recent tilt
         corrections show beyond it (:meth:`CorrectionWindow.excess_rad`: a bias change
         building, before it is one)."""
-        var = self._model_tilt_var(coasting_s)
+        var = self._model_tilt_var(open_s)
         sigma = math.sqrt(var)
         excess = self._corrections.excess_rad(self._gyro_arw, sigma)
         return math.sqrt(var + excess * excess) if excess else sigma
@@ -2058,7 +2086,7 @@ class ObserverEngine:
         fix, sigma_rtk = self._last_fix, self.cfg.gnss_vel_sigma_mps
         return sigma_rtk if fix is None else fix_velocity_sigma_mps(fix, sigma_rtk)
 
-    def _model_tilt_var(self, coasting_s: float) -> float:
+    def _model_tilt_var(self, open_s: float) -> float:
         """Roll/pitch variance from the observer's physics (seed 000, eqs. 3, 8, 10): the
         sum of the squares of:
         - the IMU's white noise through the tilt loop: gyro ARW sqrt(tau / 2) first order,
@@ -2073,7 +2101,7 @@ class ObserverEngine:
           over g (eq. 8), each decaying from its initial 1-sigma with the learning exponent
           down to the paper's residual level;
         - the z accelerometer bias as C f_b puts it on the horizontal, b_az sin(tilt) / g;
-        - open-loop drift while coasting (:meth:`_coast_drift_rad`);
+        - open-loop drift while coasting or left open (:meth:`_coast_drift_rad`);
         - the tilt error of levelling on a moving window (:mod:`gateway.estimation.levelling`)
           or of the last coast's drift, decaying with the loop while it is closed;
         - the tilt the accel-bias filter's recent corrections left, until the loop follows;
@@ -2093,7 +2121,7 @@ class ObserverEngine:
             + (sigma_bg * tau) ** 2
             + (sigma_ba / g) ** 2
             + sin2_tilt * (self._sigma_baz_mps2() / g) ** 2
-            + self._coast_drift_rad(coasting_s) ** 2
+            + self._coast_drift_rad(open_s) ** 2
             + self._sigma_level_rad**2
             + (math.hypot(*self._ba_tilt_ne) / g) ** 2
             + self._mounting_var
