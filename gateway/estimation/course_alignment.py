@@ -27,7 +27,9 @@ ALIGN_WINDOW_S = 1.0
 SLOW_ALIGN_WINDOW_S = 10.0
 #: Forward or reversing after a rest, before the heading is known: the inertial velocity
 #: change along body x, once it exceeds this many sigma of what the tilt puts into it and
-#: this floor (m/s: the engine vibration integrated over the first epochs).
+#: this floor (m/s: the engine vibration integrated over the first epochs). The observer
+#: also takes its own velocity along body x under a held course as a direction beyond this
+#: many sigma of the fix's velocity noise (``ObserverEngine._antenna_velocity``).
 DIRECTION_SIGMAS = 3.0
 DIRECTION_DV_FLOOR_MPS = 0.02
 
