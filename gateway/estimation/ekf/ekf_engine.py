@@ -267,8 +267,8 @@ class EkfEngine:
         self._hint: HeadingHint | None = None  # the heading the last engine had, till aligned
         self._seed_var_g = np.zeros(3)
         self._rest_mean_g_rps: list[float] = []  # mean rate of the last window at rest
-        self._t_rest_epoch_s: float | None = None  # last epoch at rest before alignment
-        self._v_rest_ned_mps: Array | None = None  # the INS velocity at that epoch
+        # last epoch at rest before alignment: its time and the INS velocity then
+        self._rest_epoch: tuple[float, Array] | None = None
         # epochs at rest since the last that was not, not yet zero-rate updated from, with
         # the z gyro bias estimate the rates before them were corrected with, rad/s
         self._rest_epochs: deque[tuple[float, float]] = deque()
@@ -568,7 +568,7 @@ class EkfEngine:
             return
         if self._p is None:
             if fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps:
-                self._t_rest_epoch_s, self._v_rest_ned_mps = t_e, row[ROW_V].copy()
+                self._rest_epoch = (t_e, row[ROW_V].copy())
             self._align_heading(fix, t_e, row)
             return
         if self._hist.spacing(t_e) > MAX_IMU_STEP_S:
@@ -898,7 +898,7 @@ class EkfEngine:
         ins.take_interval()
         sig_bg = self._levelled_gyro_bias_sigma_rps()
         sig_ba = tun.sigma_bias_a0_mps2
-        sig_tilt = math.hypot(sig_bg * max(0.0, t_e - self._t_levelled_s), self._sigma_level_rad)
+        sig_tilt = self._levelled_tilt_sigma_rad(t_e)
         p = self._p
         p[BA, BA] = sig_ba**2 * np.eye(3)
         p[BG, BG] = sig_bg**2 * np.eye(3)
@@ -1074,9 +1074,9 @@ class EkfEngine:
     def _dv_x_since_rest(self, row: Array) -> float | None:
         """The INS velocity change along body x from the last epoch at rest to ``row``,
         m/s; None without one."""
-        if self._v_rest_ned_mps is None:
+        if self._rest_epoch is None:
             return None
-        dv = row[ROW_V] - self._v_rest_ned_mps
+        dv = row[ROW_V] - self._rest_epoch[1]
         c = to_mat9(row[ROW_C].reshape(3, 3))
         return along_body_x(float(dv[0]), float(dv[1]), c)
 
@@ -1085,11 +1085,16 @@ class EkfEngine:
         ``row`` (epoch time ``t_e``), before the heading is known? Beyond what the levelled
         tilt puts into it (:func:`direction_known`)."""
         dv_x = self._dv_x_since_rest(row)
-        if dv_x is None or self._t_rest_epoch_s is None:
+        if dv_x is None or self._rest_epoch is None:
             return False
+        since_s = t_e - self._rest_epoch[0]
+        return direction_known(dv_x, self._levelled_tilt_sigma_rad(t_e), since_s)
+
+    def _levelled_tilt_sigma_rad(self, t_e: float) -> float:
+        """Roll/pitch 1-sigma at ``t_e`` before the filter runs: the levelling's and the gyro
+        bias's drift since it."""
         sig_bg = self._levelled_gyro_bias_sigma_rps()
-        sig_tilt = math.hypot(sig_bg * max(0.0, t_e - self._t_levelled_s), self._sigma_level_rad)
-        return direction_known(dv_x, sig_tilt, t_e - self._t_rest_epoch_s)
+        return math.hypot(sig_bg * max(0.0, t_e - self._t_levelled_s), self._sigma_level_rad)
 
     def _levelled_gyro_bias_sigma_rps(self) -> float:
         """Gyro bias 1-sigma before the filter runs: the seed's (x/y, with the rest mean's),
