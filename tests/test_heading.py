@@ -240,6 +240,52 @@ def test_the_z_bias_from_a_noisy_course_is_as_good_as_its_epochs_and_says_so() -
     assert 0.8 < rms_dps / sigma_dps < 1.25
 
 
+def test_at_a_planters_speed_the_z_bias_is_learnt_and_both_sigmas_say_what_they_have() -> None:
+    """At 0.5 m/s a course is 2.3 deg and comes on about half the epochs (the speed about
+    the course threshold); 300 s of it after a stop's zero-rate update (8 mdeg/s), the bias
+    wandering as the datasheet's in-run stability says, 200 runs. Each missing course
+    restarted the bias interval, which never ended, and the bias's sigma grew only when an
+    observation came: the bias 0.026 deg/s RMS off with 0.008 stated, the heading 0.49 deg
+    RMS off with 0.24 stated (`field` seed 575 at a planter's speeds: 125 heading frames
+    1.6-1.8 deg off, NAVIGATING). Now the interval runs on across missing courses, the
+    sigma grows every epoch, and a slope is taken as the bias's mean over its interval, not
+    the bias now: both sigmas cover their errors as 1-sigmas do."""
+    cfg = ObserverConfig()
+    rng = np.random.default_rng(12)
+    dt, sigma_ref = 0.1, cfg.gnss_vel_sigma_mps / 0.5
+    arw = cfg.gyro_arw_deg_per_sqrt_h * math.pi / 180.0 / 60.0
+    wander = math.radians(cfg.gyro_bias_stability_dps) / GM_ALLAN_FLOOR
+    walk = wander * math.sqrt(2.0 / cfg.bias_correlation_time_s)  # rad/s/sqrt(s)
+    sigma0 = math.radians(0.008)
+    bias_err, bias_sigma, psi_errs, psi_sigma = [], [], [], []
+    for _ in range(200):
+        channel = HeadingChannel(cfg)
+        channel.aligned(math.radians(0.2))
+        channel.kf.p_rps2 = sigma0**2
+        b_true = sigma0 * rng.normal()
+        psi_err, hc, w_pz = math.radians(0.2) * rng.normal(), 0.0, 0.0
+        for k in range(3000):
+            b_true += walk * math.sqrt(dt) * rng.normal()
+            psi_err += (b_true - channel.bg_z_rps) * dt + arw * math.sqrt(dt) * rng.normal()
+            psi_err -= w_pz * dt
+            hc += w_pz * dt
+            ref = None
+            if rng.random() < 0.5:
+                ref = HeadingReference(sigma_ref * rng.normal(), sigma_ref, HeadingSource.COG)
+            w_pz = channel.correct(
+                k * dt, psi_err, ref, hc, 1.0, learn=True, yaw_rate_rps=0
+            ).w_pz_rps
+        bias_err.append(channel.bg_z_rps - b_true)
+        bias_sigma.append(channel.kf.sigma_rps)
+        psi_errs.append(psi_err)
+        psi_sigma.append(channel.sigma_psi_at(k * dt))
+    bias_rms = float(np.sqrt(np.mean(np.square(bias_err))))
+    psi_rms = float(np.sqrt(np.mean(np.square(psi_errs))))
+    assert math.degrees(bias_rms) < 0.02
+    assert 0.8 < bias_rms / float(np.mean(bias_sigma)) < 1.3
+    assert 0.8 < psi_rms / float(np.mean(psi_sigma)) < 1.3
+
+
 def test_the_heading_sigma_of_a_unit_noisier_than_its_datasheet_grows_with_its_noise() -> None:
     """The heading's 1-sigma at the end of a 30 s outage (what NAVIGATING's 0.5 deg is held
     to) on a unit twice as noisy as its config says, parked 10 s first: its ARW as measured
@@ -267,7 +313,10 @@ def test_the_heading_sigma_of_a_unit_noisier_than_its_datasheet_grows_with_its_n
                 break
         sigma_deg.append(math.degrees(engine._heading.sigma_psi_at(sample.t)))
     assert 0.25 < sigma_deg[0] < 0.4, sigma_deg  # ARW 0.18 deg, the z bias's 0.25
-    assert sigma_deg[1] > 1.5 * sigma_deg[0], sigma_deg
+    # twice the ARW adds three times its variance over the outage (the wander's more on top);
+    # the config's figures would state the same sigma for both
+    arw_outage_deg = 2.0 / 60.0 * math.sqrt(30.0)  # 2 deg/sqrt(h) over 30 s
+    assert sigma_deg[1] ** 2 - sigma_deg[0] ** 2 > 3.0 * arw_outage_deg**2, sigma_deg
 
 
 def test_the_heading_states_the_lag_an_unlearnt_z_bias_holds_it_at() -> None:
