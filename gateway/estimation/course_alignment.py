@@ -11,7 +11,7 @@ course with 3 deg stated, said DEGRADED for 0.8-1.8 s until its filter had avera
 courses itself. The offsets of the epochs within :data:`ALIGN_WINDOW_S`, each weighed by its
 course's sigma, average that noise down; the z-gyro bias, which turned the platform between
 them, adds its share. A vehicle slower than the alignment speed waits for more of them
-(:data:`SLOW_ALIGN_WINDOW_S`) and for the direction of travel (:func:`direction_known`).
+(:data:`SLOW_ALIGN_WINDOWS_S`) and for the direction of travel (:func:`direction_known`).
 """
 
 from __future__ import annotations
@@ -23,8 +23,9 @@ from drivers.units import DEG_TO_RAD, GRAVITY_MPS2, wrap_pi
 
 #: Courses this recent make the first heading at the alignment speed, s ...
 ALIGN_WINDOW_S = 1.0
-#: ... and under it, once they give NAVIGATING's accuracy (:meth:`CourseAlignment.alignment`).
-SLOW_ALIGN_WINDOW_S = 10.0
+#: ... and under it, once they give NAVIGATING's accuracy (:meth:`CourseAlignment.alignment`):
+#: whichever of these gives the smaller sigma (more courses, against the z bias's turn).
+SLOW_ALIGN_WINDOWS_S = (10.0, 30.0, 60.0)
 #: Forward or reversing after a rest, before the heading is known: the inertial velocity
 #: change along body x, once it exceeds this many sigma of what the tilt puts into it and
 #: this floor (m/s: the engine vibration integrated over the first epochs). The observer
@@ -54,7 +55,7 @@ class CourseAlignment:
     def add(self, t_s: float, offset_rad: float, sigma_rad: float) -> None:
         """One epoch: its course less the platform's yaw at ``t_s``, and the course's sigma."""
         self._epochs.append((t_s, offset_rad, sigma_rad))
-        while self._epochs and self._epochs[0][0] < t_s - SLOW_ALIGN_WINDOW_S:
+        while self._epochs and self._epochs[0][0] < t_s - SLOW_ALIGN_WINDOWS_S[-1]:
             self._epochs.popleft()
 
     def clear(self) -> None:
@@ -70,10 +71,12 @@ class CourseAlignment:
         direction_known: bool,
     ) -> tuple[float, float] | None:
         """(offset, 1-sigma) rad to align on now, or None: at ``align_speed_mps`` the last
-        :data:`ALIGN_WINDOW_S`'s courses; slower, those of :data:`SLOW_ALIGN_WINDOW_S`, once
-        they give the heading within NAVIGATING's 1-sigma and the direction of travel is
-        known. Why: a vineyard tractor at 1 m/s, a planter at 0.5, never reach 1.5 m/s, and
-        both engines stayed ALIGNING, no heading and no position, for a whole 21-minute run.
+        :data:`ALIGN_WINDOW_S`'s courses; slower, those of one of
+        :data:`SLOW_ALIGN_WINDOWS_S`, once they give the heading within NAVIGATING's 1-sigma
+        and the direction of travel is known. Why: a vineyard tractor at 1 m/s, a planter at
+        0.5, never reach 1.5 m/s, and both engines stayed ALIGNING, no heading and no
+        position, for a whole 21-minute run; with a 1 Hz receiver a planter's 10 s of
+        courses (2 deg each at 0.6 m/s) give 0.7 deg, and it stayed so with them alone.
         The alignment speed stands for "forward" (vehicles reverse slower): under it, a
         restart while reversing at 0.8 m/s aligned 180 deg off until the direction was asked
         for. The short window stays at speed: there the slower courses of a pull-away, the
@@ -82,7 +85,9 @@ class CourseAlignment:
             return self.offset(sigma_bz_rps, ALIGN_WINDOW_S)
         if not direction_known:
             return None
-        offset = self.offset(sigma_bz_rps, SLOW_ALIGN_WINDOW_S)
+        offset = min(
+            (self.offset(sigma_bz_rps, w) for w in SLOW_ALIGN_WINDOWS_S), key=lambda o: o[1]
+        )
         return offset if offset[1] <= navigating_sigma_deg * DEG_TO_RAD else None
 
     def offset(self, sigma_bz_rps: float, window_s: float) -> tuple[float, float]:

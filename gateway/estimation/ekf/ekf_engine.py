@@ -269,6 +269,8 @@ class EkfEngine:
         self._rest_mean_g_rps: list[float] = []  # mean rate of the last window at rest
         # last epoch at rest before alignment: its time and the INS velocity then
         self._rest_epoch: tuple[float, Array] | None = None
+        # forward (True) or reversing since that rest, once its velocity change told
+        self._direction_since_rest: bool | None = None
         # epochs at rest since the last that was not, not yet zero-rate updated from, with
         # the z gyro bias estimate the rates before them were corrected with, rad/s
         self._rest_epochs: deque[tuple[float, float]] = deque()
@@ -569,6 +571,7 @@ class EkfEngine:
         if self._p is None:
             if fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps:
                 self._rest_epoch = (t_e, row[ROW_V].copy())
+                self._direction_since_rest = None
             self._align_heading(fix, t_e, row)
             return
         if self._hist.spacing(t_e) > MAX_IMU_STEP_S:
@@ -1042,6 +1045,8 @@ class EkfEngine:
         if vel is None or measured is None or speed < self.cfg.cog_min_speed_mps:
             return None
         w_e, sig_lever = self._lever_rate(t_e, self._l_ant_m)
+        if self._direction_since_rest is None and self._direction_known(t_e, row):
+            self._direction_since_rest = self._forward_since_rest(row)
         forward = self._forward_at(vel, row, w_e)
         course = heading_from_antenna_course(vel, row[ROW_C], w_e, self._l_ant_b, forward)
         sigma_v = math.hypot(measured[1], sig_lever)
@@ -1049,7 +1054,7 @@ class EkfEngine:
         bz_var = self._seed_var_g[2] if self._seed is not None else None
         sig_bz = math.sqrt(bz_var) if bz_var is not None else self._levelled_gyro_bias_sigma_rps()
         cfg = self.cfg
-        known = self._hint is not None or self._direction_known(t_e, row)
+        known = self._hint is not None or self._direction_since_rest is not None
         return self._courses.alignment(
             sig_bz, speed, cfg.align_min_speed_mps, cfg.navigating_heading_sigma_deg, known
         )
@@ -1066,8 +1071,14 @@ class EkfEngine:
         return self._hint.forward(if_forward, math.atan2(c[3], c[0]))
 
     def _forward_since_rest(self, row: Array) -> bool:
-        """Driving forward at ``row``: its INS velocity against that of the last epoch at
-        rest along body x (:func:`along_body_x`); forward if there was none."""
+        """Driving forward at ``row``: as the velocity change since the last rest said
+        once it could (kept until the next rest, as the observer keeps it: the tilt's
+        share of the change, g theta t, soon outgrows it; a planter with a 1 Hz receiver
+        lost it 5 s after pulling away, before its courses gave a heading, and never
+        aligned), else its INS velocity against that of the last epoch at rest along body
+        x (:func:`along_body_x`); forward if there was none."""
+        if self._direction_since_rest is not None:
+            return self._direction_since_rest
         dv_x = self._dv_x_since_rest(row)
         return dv_x is None or dv_x >= 0.0
 
@@ -1093,8 +1104,16 @@ class EkfEngine:
     def _levelled_tilt_sigma_rad(self, t_e: float) -> float:
         """Roll/pitch 1-sigma at ``t_e`` before the filter runs: the levelling's and the gyro
         bias's drift since it."""
-        sig_bg = self._levelled_gyro_bias_sigma_rps()
-        return math.hypot(sig_bg * max(0.0, t_e - self._t_levelled_s), self._sigma_level_rad)
+        return math.sqrt(self._bias_drift_var_rad2(t_e) + self._sigma_level_rad**2)
+
+    def _bias_drift_var_rad2(self, t: float) -> float:
+        """Tilt variance the gyro bias adds from levelling to ``t``: its sigma then times
+        the time, and its in-run walk since, Q_bg dt^3 / 3. Without the walk a planter with
+        a 1 Hz receiver, no heading for ten minutes, sent roll 4 deg off with 1.3 stated."""
+        assert self._tuning is not None
+        dt = max(0.0, t - self._t_levelled_s)
+        bias_drift = self._levelled_gyro_bias_sigma_rps() * dt
+        return bias_drift**2 + self._tuning.q_bias_g_rad2_per_s3 * dt**3 / 3.0
 
     def _levelled_gyro_bias_sigma_rps(self) -> float:
         """Gyro bias 1-sigma before the filter runs: the seed's (x/y, with the rest mean's),
@@ -1176,8 +1195,7 @@ class EkfEngine:
         resets to 8.5 m off, 0.8 m without."""
         assert self._tuning is not None
         dt = max(0.0, t - self._t_levelled_s)
-        bias_drift = self._levelled_gyro_bias_sigma_rps() * dt
-        return bias_drift**2 + self._tuning.q_gyro_rad2_per_s * dt
+        return self._bias_drift_var_rad2(t) + self._tuning.q_gyro_rad2_per_s * dt
 
     def _reset_from_fix(self, fix: GnssFix, t_e: float, row: Array) -> None:
         """Recovery after a long outage or a run of rejections: position/velocity from GNSS.
