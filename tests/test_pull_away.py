@@ -316,7 +316,9 @@ def test_crawling_without_a_heading_for_ten_minutes_the_stated_tilt_covers_the_b
     Every roll and pitch within 0.1 deg + 3 stated sigma; also for a unit twice as noisy
     as its datasheet, its wander twice the datasheet's too (robustness `imu-noise-x2`),
     which the EKF's tilt before the filter runs takes from the noise measured at rest
-    (3.4 deg off with 0.86 stated on `field` seed 577 at a planter's speeds, 1 Hz)."""
+    (3.4 deg off with 0.86 stated on `field` seed 577 at a planter's speeds, 1 Hz), and
+    the observer's x/y bias sigma grows with the walk since it last learnt (its pitch
+    3.2 deg off with 1.02 stated on that run; 4.4 of the stated sigma here)."""
     PARKED_S = 180.0  # loading seed: the rest's mean bias to 2.5 mdeg/s
     motion = Motion(
         [Segment(PARKED_S), Segment(1.5, accel_mps2=0.2), Segment(600.0)],
@@ -325,11 +327,12 @@ def test_crawling_without_a_heading_for_ten_minutes_the_stated_tilt_covers_the_b
         yaw0_rad=YAW0,
     )
     n = int(motion.duration_s / IMU_DT_S)
-    rng = np.random.default_rng(8)
+    rng = np.random.default_rng(4)
     sigma = noise * math.radians(0.007) / GM_ALLAN_FLOOR
     phi = math.exp(-IMU_DT_S / 100.0)
     drive = sigma * math.sqrt(1.0 - phi * phi) * rng.standard_normal((n, 3))
     wander = np.zeros((n, 3))
+    wander[0] = sigma * rng.standard_normal(3)  # where its wander has it at switch-on
     for k in range(1, n):
         wander[k] = phi * wander[k - 1] + drive[k]
     wander[:, 2] = 0.0
@@ -338,9 +341,9 @@ def test_crawling_without_a_heading_for_ten_minutes_the_stated_tilt_covers_the_b
         bias_g_rps=wander + np.array([0.05, -0.04, 0.0]) * DEG_TO_RAD,
         noise_g_rps=noise * GYRO_ARW_PER_SAMPLE_RPS,
         noise_a_mps2=0.01,
-        seed=8,
+        seed=4,
     )
-    fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=8)
+    fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=4)
     out = solutions(_engine(name), imu, fixes, every=200)
     moving = [s for t, s in out if t > PARKED_S + 10.0 and s.sigma_tilt_rad is not None]
     assert moving and all(s.yaw_rad is None for s in moving)  # no heading all along
