@@ -201,6 +201,39 @@ def test_a_working_hdt_at_20_hz_with_latency_is_never_rejected() -> None:
     assert max(abs(_yaw_err_deg(motion, t, s)) for t, s in out if t > 10.0) < 0.3
 
 
+DT_S = 0.1  # GNSS epochs of the channel-only runs
+
+
+def _drive_channel(
+    channel: HeadingChannel,
+    rng: np.random.Generator,
+    b_true: float,
+    psi_err: float,
+    epochs: int,
+    sigma_ref: float,
+    course_share: float,
+) -> tuple[float, float]:
+    """The channel fed a straight drive at :data:`DT_S` epochs: the platform turned by the
+    residual z bias (wandering as the config's datasheet says) and the ARW, corrected by
+    w_pz; a course of ``sigma_ref`` on ``course_share`` of the epochs (drawn; all at 1).
+    Returns the true bias and the heading's error at the end, rad/s and rad."""
+    cfg = channel.cfg
+    arw = cfg.gyro_arw_deg_per_sqrt_h * math.pi / 180.0 / 60.0
+    wander = math.radians(cfg.gyro_bias_stability_dps) / GM_ALLAN_FLOOR
+    walk = wander * math.sqrt(2.0 / cfg.bias_correlation_time_s)  # rad/s/sqrt(s)
+    hc = w_pz = 0.0  # the correction applied so far, its rate
+    for k in range(epochs):
+        b_true += walk * math.sqrt(DT_S) * rng.normal()
+        psi_err += (b_true - channel.bg_z_rps) * DT_S + arw * math.sqrt(DT_S) * rng.normal()
+        psi_err -= w_pz * DT_S
+        hc += w_pz * DT_S
+        ref = None
+        if course_share >= 1.0 or rng.random() < course_share:
+            ref = HeadingReference(sigma_ref * rng.normal(), sigma_ref, HeadingSource.COG)
+        w_pz = channel.correct(k * DT_S, psi_err, ref, hc, 1.0, learn=True, yaw_rate_rps=0).w_pz_rps
+    return b_true, psi_err
+
+
 def test_the_z_bias_from_a_noisy_course_is_as_good_as_its_epochs_and_says_so() -> None:
     """Seed 001's drift over an interval, taken from every epoch of it (a line's slope), not
     from its two ends: 60 s of course at 10 Hz, 3 m/s, 2 cm/s velocity noise (0.38 deg), a
@@ -211,27 +244,12 @@ def test_the_z_bias_from_a_noisy_course_is_as_good_as_its_epochs_and_says_so() -
     times what it had, and weighed its prior and each interval wrongly."""
     cfg = ObserverConfig()
     rng = np.random.default_rng(11)
-    dt = 0.1
     sigma_ref = cfg.gnss_vel_sigma_mps / 3.0
-    arw = cfg.gyro_arw_deg_per_sqrt_h * math.pi / 180.0 / 60.0
-    wander = math.radians(cfg.gyro_bias_stability_dps) / GM_ALLAN_FLOOR
-    walk = wander * math.sqrt(2.0 / cfg.bias_correlation_time_s)  # rad/s/sqrt(s)
     errors, sigmas = [], []
     for _ in range(300):
         channel = HeadingChannel(cfg)
         channel.aligned(sigma_ref)
-        b_true = math.radians(0.05)
-        psi_err = hc = w_pz = 0.0  # the gyro heading's error, the correction applied so far
-        for k in range(600):
-            # the platform turned by the residual bias and the ARW, corrected by w_pz
-            b_true += walk * math.sqrt(dt) * rng.normal()
-            psi_err += (b_true - channel.bg_z_rps) * dt + arw * math.sqrt(dt) * rng.normal()
-            psi_err -= w_pz * dt
-            hc += w_pz * dt
-            ref = HeadingReference(sigma_ref * rng.normal(), sigma_ref, HeadingSource.COG)
-            w_pz = channel.correct(
-                k * dt, psi_err, ref, hc, 1.0, learn=True, yaw_rate_rps=0
-            ).w_pz_rps
+        b_true, _ = _drive_channel(channel, rng, math.radians(0.05), 0.0, 600, sigma_ref, 1.0)
         errors.append(channel.bg_z_rps - b_true)
         sigmas.append(channel.kf.sigma_rps)
     rms_dps = math.degrees(float(np.sqrt(np.mean(np.square(errors)))))
@@ -252,10 +270,7 @@ def test_at_a_planters_speed_the_z_bias_is_learnt_and_both_sigmas_say_what_they_
     the bias now: both sigmas cover their errors as 1-sigmas do."""
     cfg = ObserverConfig()
     rng = np.random.default_rng(12)
-    dt, sigma_ref = 0.1, cfg.gnss_vel_sigma_mps / 0.5
-    arw = cfg.gyro_arw_deg_per_sqrt_h * math.pi / 180.0 / 60.0
-    wander = math.radians(cfg.gyro_bias_stability_dps) / GM_ALLAN_FLOOR
-    walk = wander * math.sqrt(2.0 / cfg.bias_correlation_time_s)  # rad/s/sqrt(s)
+    sigma_ref = cfg.gnss_vel_sigma_mps / 0.5
     sigma0 = math.radians(0.008)
     bias_err, bias_sigma, psi_errs, psi_sigma = [], [], [], []
     for _ in range(200):
@@ -263,22 +278,12 @@ def test_at_a_planters_speed_the_z_bias_is_learnt_and_both_sigmas_say_what_they_
         channel.aligned(math.radians(0.2))
         channel.kf.p_rps2 = sigma0**2
         b_true = sigma0 * rng.normal()
-        psi_err, hc, w_pz = math.radians(0.2) * rng.normal(), 0.0, 0.0
-        for k in range(3000):
-            b_true += walk * math.sqrt(dt) * rng.normal()
-            psi_err += (b_true - channel.bg_z_rps) * dt + arw * math.sqrt(dt) * rng.normal()
-            psi_err -= w_pz * dt
-            hc += w_pz * dt
-            ref = None
-            if rng.random() < 0.5:
-                ref = HeadingReference(sigma_ref * rng.normal(), sigma_ref, HeadingSource.COG)
-            w_pz = channel.correct(
-                k * dt, psi_err, ref, hc, 1.0, learn=True, yaw_rate_rps=0
-            ).w_pz_rps
+        psi_err0 = math.radians(0.2) * rng.normal()
+        b_true, psi_err = _drive_channel(channel, rng, b_true, psi_err0, 3000, sigma_ref, 0.5)
         bias_err.append(channel.bg_z_rps - b_true)
         bias_sigma.append(channel.kf.sigma_rps)
         psi_errs.append(psi_err)
-        psi_sigma.append(channel.sigma_psi_at(k * dt))
+        psi_sigma.append(channel.sigma_psi_at(2999 * DT_S))
     bias_rms = float(np.sqrt(np.mean(np.square(bias_err))))
     psi_rms = float(np.sqrt(np.mean(np.square(psi_errs))))
     assert math.degrees(bias_rms) < 0.02

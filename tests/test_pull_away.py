@@ -81,6 +81,20 @@ def _tilt_error_deg(sol: Solution) -> float:
     return math.degrees(max(abs(sol.roll_rad - ROLL), abs(sol.pitch_rad - PITCH)))
 
 
+def _headless_tilts_beyond_stated(
+    out: list[tuple[float, Solution]], after_s: float
+) -> list[tuple[float, float]]:
+    """(error, stated sigma) deg of the tilts sent after ``after_s`` beyond 0.1 deg + 3
+    stated sigma; none of them with a heading."""
+    moving = [s for t, s in out if t > after_s and s.sigma_tilt_rad is not None]
+    assert moving and all(s.yaw_rad is None for s in moving)  # no heading all along
+    return [
+        (round(_tilt_error_deg(s), 2), round(math.degrees(s.sigma_tilt_rad), 2))  # type: ignore[arg-type]
+        for s in moving
+        if math.radians(_tilt_error_deg(s)) > math.radians(0.1) + 3.0 * s.sigma_tilt_rad  # type: ignore[operator]
+    ]
+
+
 @pytest.mark.parametrize("name", ["observer", "ekf"])
 def test_pulling_away_before_the_heading_is_known_leaves_no_tilt(name: str) -> None:
     """0.5 m/s^2 from rest: 1-10 s after the start the tilt is within 0.03 deg (the
@@ -345,13 +359,7 @@ def test_crawling_without_a_heading_for_ten_minutes_the_stated_tilt_covers_the_b
     )
     fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=4)
     out = solutions(_engine(name), imu, fixes, every=200)
-    moving = [s for t, s in out if t > PARKED_S + 10.0 and s.sigma_tilt_rad is not None]
-    assert moving and all(s.yaw_rad is None for s in moving)  # no heading all along
-    beyond = [
-        (round(_tilt_error_deg(s), 2), round(math.degrees(s.sigma_tilt_rad), 2))  # type: ignore[arg-type]
-        for s in moving
-        if math.radians(_tilt_error_deg(s)) > math.radians(0.1) + 3.0 * s.sigma_tilt_rad  # type: ignore[operator]
-    ]
+    beyond = _headless_tilts_beyond_stated(out, PARKED_S + 10.0)
     assert not beyond, beyond[:5]
 
 
@@ -382,11 +390,5 @@ def test_creeping_before_the_heading_is_known_the_stated_tilt_covers_its_drift(
     )
     fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=5)
     out = solutions(_engine(name), imu, fixes, every=50)
-    moving = [s for t, s in out if t > REST_S + 10.0 and s.sigma_tilt_rad is not None]
-    assert moving and all(s.yaw_rad is None for s in moving)  # no heading all along
-    beyond = [
-        (round(_tilt_error_deg(s), 2), round(math.degrees(s.sigma_tilt_rad), 2))  # type: ignore[arg-type]
-        for s in moving
-        if math.radians(_tilt_error_deg(s)) > math.radians(0.1) + 3.0 * s.sigma_tilt_rad  # type: ignore[operator]
-    ]
+    beyond = _headless_tilts_beyond_stated(out, REST_S + 10.0)
     assert not beyond, beyond[:5]
