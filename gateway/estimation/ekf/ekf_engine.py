@@ -1025,7 +1025,13 @@ class EkfEngine:
             r_g,
             r_a,
         )
-        tun = replace(tun, q_gyro_rad2_per_s=q_g * r_g * r_g, q_accel_m2_per_s3=q_a * r_a * r_a)
+        tun = replace(
+            tun,
+            q_gyro_rad2_per_s=q_g * r_g * r_g,
+            q_accel_m2_per_s3=q_a * r_a * r_a,
+            q_bias_g_rad2_per_s3=tun.q_bias_g_rad2_per_s3 * r_g * r_g,
+            q_bias_a_m2_per_s5=tun.q_bias_a_m2_per_s5 * r_a * r_a,
+        )
         fix_q = self._q_c[FIX].copy()
         self._tuning, self._q_c = tun, process_noise_psd(tun)
         self._q_c[FIX] = fix_q
