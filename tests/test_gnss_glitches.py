@@ -20,6 +20,7 @@ from gateway.config.gateway_config import Engine
 from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.epoch_clock import EpochTime
 from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Mode
 from tests.kinematics import (
@@ -30,6 +31,7 @@ from tests.kinematics import (
     gnss_stream,
     imu_stream,
     motion_time,
+    solutions,
     state_at,
 )
 from tests.n2k_check import decode_log
@@ -366,3 +368,32 @@ def test_a_biased_velocity_with_the_positions_right_is_the_velocitys_fault(
     assert not untold, untold[:5]
     if engine is Engine.EKF:
         assert max(e for _, e in errors) < 0.05
+
+
+def test_a_height_reset_after_a_long_rejection_at_1_hz_kicks_no_vertical_velocity() -> None:
+    """A new base station moves a 1 Hz receiver's positions 30 m north and 3 m up for
+    good: rejected for ``position_reset_s``, then reset to. The height loop's velocity
+    correction is the height residual over the time since the height was last corrected;
+    it took it over one epoch interval (capped at ``max_gnss_interval_s``), so this reset
+    put 0.6 m/s into the vertical velocity, and where the horizontal stayed rejected each
+    reset tripled the last one's (a planter's dead reckoning off the fixes before its
+    first heading, `field` seed 578: the height reached 1e102 m). After the reset the
+    vertical velocity stays within 5 cm/s and the height within 10 cm of the new fixes'."""
+    start = 40.0
+    imu = imu_stream(LONG_MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    fixes = [
+        dataclasses.replace(f, lat_deg=f.lat_deg + 30.0 / M_PER_DEG, alt_m=f.alt_m + 3.0)  # type: ignore[operator]
+        if motion_time(f.t) >= start
+        else f
+        for f in gnss_stream(LONG_MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07, rate_hz=1.0)
+    ]
+    engine = ObserverEngine(ObserverConfig(antenna_lever_arm_m=LEVER))
+    out = solutions(engine, imu, fixes, every=41)
+    assert engine.counters.position_resets == 1
+    reset_s = start + engine.cfg.position_reset_s
+    after = [s for t, s in out if t > reset_s + 1.0]
+    assert after and all(s.vel_ned_mps is not None and s.alt_m is not None for s in after)
+    v_d = max(abs(s.vel_ned_mps[2]) for s in after)  # type: ignore[index]
+    assert v_d < 0.05, v_d
+    alt = max(abs(s.alt_m - ORIGIN_LLA[2] - 3.0) for s in after)
+    assert alt < 0.1, alt

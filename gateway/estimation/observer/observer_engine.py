@@ -1759,13 +1759,18 @@ class ObserverEngine:
         ]
         dp = [p_ref[i] - (p[i] - 0.5 * (v[i] + v_e[i]) * age) for i in range(3)]
         self._predict_position(fix, t_e)
-        interval_s = min(t_e - (self._t_height_epoch_s or t_e), self.cfg.max_gnss_interval_s)
+        # the time since the height was last corrected: the loop's velocity correction is
+        # the height residual over it (capped at an epoch interval, a span of rejected
+        # heights made it 20 times too large; at 1 Hz each reset then tripled the vertical
+        # velocity error, and with the horizontal rejected on, the height reached 1e102 m)
+        since_s = t_e - (self._t_height_epoch_s or t_e)
+        interval_s = min(since_s, self.cfg.max_gnss_interval_s)
         verdict = self._gate_position(fix, t_e, dp)
         # a position rejected for its horizontal part (a jump, a drift) whose height agrees:
         # the height loop keeps it (open, the height ran 18 m off in a minute's rejections)
         height_only = verdict == "reject" and abs(dp[2]) <= self._height_gate_m()
         corr = (0.0, 0.0, 0.0)
-        k_d = min(1.0, 2.0 * interval_s / HEIGHT_LOOP_TAU_S) if interval_s > 0.0 else 1.0
+        k_d = min(1.0, 2.0 * since_s / HEIGHT_LOOP_TAU_S) if since_s > 0.0 else 1.0
         if verdict == "use":
             c_n, c_e = channel.update(dp)
             corr = (c_n, c_e, k_d * dp[2])
@@ -1779,10 +1784,10 @@ class ObserverEngine:
         if v_ref_ne is not None:
             dv[0] = v_ref_ne[0] - v_e[0]
             dv[1] = v_ref_ne[1] - v_e[1]
-        if interval_s > 0.0:
+        if since_s > 0.0:
             # alpha-beta form of the critically damped loop: beta = alpha^2 / 4 (alpha * the
             # correction alpha dz) stays stable with alpha <= 1 whatever the epoch interval
-            dv[2] = 0.25 * k_d / interval_s * corr[2]
+            dv[2] = 0.25 * k_d / since_s * corr[2]
         for i in range(3):
             p[i] += corr[i] + dv[i] * age
             v[i] += dv[i]
