@@ -293,7 +293,7 @@ class HeadingChannel:
         interval_s = 0.0 if self._t_last_s is None else t_s - self._t_last_s
         self._t_last_s = t_s
         self._predict_heading_variance(interval_s)
-        self._predict_bias(t_s)
+        self.predict_bias(t_s)
         if ref is None:
             self._rejected_since_s = None
             self._forget_corrections(self.sigma_psi_rad)
@@ -414,12 +414,16 @@ class HeadingChannel:
         self._p_psi_rad2 += self._heading_growth_rad2(gap_s)
         self._p_psi_bz += gap_s * self.kf.p_rps2
 
-    def _predict_bias(self, t_s: float) -> None:
-        """The z bias's variance grown by its in-run wander up to ``t_s``, every epoch: the
-        heading's growth and the corrections' check take its sigma as of now. Grown only
+    def predict_bias(self, t_s: float) -> None:
+        """The z bias's variance grown by its in-run wander up to ``t_s``, every epoch (the
+        engine's before the heading is known too): the heading's growth, the corrections'
+        check and the first alignment's courses take its sigma as of now. Grown only
         when an observation came, it stayed at a stop's 8 mdeg/s through 260 s of planting
         at 0.4-0.5 m/s without one while the bias wandered 0.03 deg/s, and the heading,
-        1.6 deg off, stated 0.46 (`field` seed 575, planter speeds, IMU mounted rotated)."""
+        1.6 deg off, stated 0.46 (`field` seed 575, planter speeds, IMU mounted rotated);
+        before the heading, 12.8 mdeg/s through 590 s in which the bias wandered 0.08
+        deg/s, and the courses aligned it 1.7 deg off with 0.5 stated (seed 578, a unit
+        twice as noisy, a 1 Hz receiver)."""
         if self._t_kf_s is not None and t_s > self._t_kf_s:
             self.kf.predict(t_s - self._t_kf_s)
         if self._t_kf_s is None or t_s > self._t_kf_s:
@@ -475,7 +479,7 @@ class HeadingChannel:
         True if taken: then the vehicle has not turned (the caller may hold the heading,
         :meth:`held`). Refused beyond ``glitch_sigma`` of the bias's and the mean's sigma: a
         turn on the spot, or creeping round a tight turn under the stationary speed."""
-        self._predict_bias(t_s)
+        self.predict_bias(t_s)
         r = self._arw**2 / window_s
         if mean_w_z_rps**2 > self.cfg.glitch_sigma**2 * (self.kf.p_rps2 + r):
             return False

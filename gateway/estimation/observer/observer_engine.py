@@ -1640,6 +1640,7 @@ class ObserverEngine:
         assert obs is not None
         cfg = self.cfg
         if not self._heading_aligned:
+            self._heading.predict_bias(t_e)
             if hdt_rad is not None:
                 target, sigma = hdt_rad, cfg.hdt_sigma_deg * DEG_TO_RAD
             elif speed_ref_mps >= cfg.cog_min_speed_mps:
