@@ -128,8 +128,9 @@ RECENT_ROWS = 64
 #: drifted 60 m in a float spell.
 HEIGHT_LOOP_TAU_S = 0.3
 #: Before the heading is known, how long after a rest the tilt loop runs on the speed along
-#: body x, s (:meth:`ObserverEngine._velocity_along_body_x`): the direction of travel is
-#: the one taken when leaving the rest, and a wheeled vehicle reverses only through a stop.
+#: body x in the direction taken leaving the rest, s (a wheeled vehicle reverses only
+#: through a stop); after it each epoch checks the direction against the inertial velocity
+#: (:meth:`ObserverEngine._direction_holds`).
 BODY_X_LOOP_S = 5.0
 #: A speed beyond this many sigma of the fix's velocity noise is creeping, not standing still.
 CREEP_SIGMAS = 3.0
@@ -268,6 +269,9 @@ class ObserverEngine:
         self._rest_row: _Row | None = None  # history row of the last epoch at rest
         self._forward: bool | None = None  # direction of travel since that rest
         self._forward_known = False  # ... beyond what a tilt error could make of it
+        # the last epoch the tilt loop closed on the speed along body x: its row and the IMU's
+        # velocity N/E it took (:meth:`_direction_holds`)
+        self._body_x_last: tuple[_Row, float, float] | None = None
         self._held_forward: bool | None = None  # ... under a held course, since the last stop
         self._direction_pending = False  # ... not found yet: the epoch gives no velocity
         # reference point at the last still epoch, N and E, m: the fix's 1-sigma, time, quality
@@ -1181,7 +1185,8 @@ class ObserverEngine:
     ) -> tuple[float, float] | None:
         """Before the heading is known: the IMU's horizontal velocity in the platform's own
         azimuth, from the GNSS speed along body x (a wheeled vehicle does not slip sideways),
-        for up to :data:`BODY_X_LOOP_S` after a rest; None at rest, or when not known.
+        from a rest on while the direction holds (:meth:`_direction_holds`); None at rest,
+        or when not known.
 
         Why: at rest the tilt loop takes v = 0 and closes in any azimuth; leaving it, the
         loop opened until the course gave the heading (1 m/s). The rest epochs of the pull
@@ -1199,9 +1204,11 @@ class ObserverEngine:
         """
         if self._at_rest:
             self._rest_row, self._forward, self._forward_known = row, None, False
+            self._body_x_last = None
             return None
         rest = self._rest_row
         if rest is None or fix.sog_mps is None:
+            self._body_x_last = None
             return None
         since_s = t_e - rest[_T]
         if not self._forward_known:
@@ -1219,13 +1226,42 @@ class ObserverEngine:
             self._forward_known = direction_known(dv_x, sigma_theta, since_s)
             if not self._forward_known:
                 return None
-        if since_s > BODY_X_LOOP_S:
+        if since_s > BODY_X_LOOP_S and not self._direction_holds(fix, row, c_e):
+            self._body_x_last = None
             return None
         vn, ve = antenna_velocity_along_body_x(
             fix.sog_mps, c_e, w_lever, self._l_ant_f, self._forward is not False
         )
         v_imu = velocity_at((vn, ve, 0.0), c_e, w_lever, self._l_ant_f, self._l_imu_f)
+        self._body_x_last = (row, v_imu[0], v_imu[1])
         return v_imu[0], v_imu[1]
+
+    def _direction_holds(self, fix: GnssFix, row: _Row, c_e: Mat9) -> bool:
+        """Past :data:`BODY_X_LOOP_S` after a rest, with the heading still unknown: may the
+        tilt loop go on closing on the speed along body x? Yes while the last epoch closed
+        it: the direction is then the IMU velocity that epoch took, carried on by f_p, where
+        that is beyond :data:`DIRECTION_SIGMAS` of the fix's noise and the drift the tilt
+        puts into it (a reversal with no epoch at rest, a 1 Hz receiver's), else the one
+        held (a wheeled vehicle reverses only through a stop).
+
+        Why: a vehicle under ``align_min_speed_mps`` may drive on for minutes before its
+        courses give the heading; open loop, a planter at 0.5 m/s with a unit twice as noisy
+        as its datasheet and a 1 Hz receiver (`field` seed 578) drifted 6 deg in tilt in
+        the 130 s to its first turn, stated, but its dead reckoning ran off the fixes and
+        never aligned."""
+        last = self._body_x_last
+        if last is None:
+            return False
+        prow, vn, ve = last
+        u = along_body_x(vn + row[_SF_N] - prow[_SF_N], ve + row[_SF_E] - prow[_SF_E], c_e)
+        sigma = math.hypot(
+            fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps),
+            self._lever_sigma_mps(),
+            GRAVITY_MPS2 * self._sigma_tilt_rad(0.0) * (row[_T] - prow[_T]),
+        )
+        if abs(u) >= DIRECTION_SIGMAS * sigma:
+            self._forward = u >= 0.0
+        return True
 
     def _direction_from_hint(
         self, fix: GnssFix, v_ant: Float3, c_e: Mat9, w_lever: Float3, row: _Row
@@ -1526,10 +1562,11 @@ class ObserverEngine:
 
     def _open_s(self, t_s: float) -> float:
         """How long the tilt loop has run open at ``t_s``: through a coast
-        (:meth:`_coasting_s`) or since an epoch left it open on the move. Before the heading
-        is known the loop closes on the speed along body x for :data:`BODY_X_LOOP_S` after
-        a rest only: a vehicle driving on under ``align_min_speed_mps`` drifted open loop,
-        roll 1.9 deg off in 100 s with the 0.59 deg stated at levelling."""
+        (:meth:`_coasting_s`) or since an epoch left it open on the move (before the heading
+        is known, one that gave no speed along body x: the direction of travel not known,
+        after a restart on the move). Unstated, a vehicle driving on under
+        ``align_min_speed_mps`` with its loop open drifted roll 1.9 deg off in 100 s with
+        the 0.59 deg stated at levelling."""
         since = 0.0 if self._t_open_s is None else max(0.0, t_s - self._t_open_s)
         return max(self._coasting_s(), since)
 
