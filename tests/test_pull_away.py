@@ -15,6 +15,7 @@ import math
 import numpy as np
 import pytest
 
+from drivers.samples import GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, wrap_pi
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR, EkfConfig
 from gateway.estimation.ekf.ekf_engine import EkfEngine
@@ -365,6 +366,24 @@ def test_crawling_without_a_heading_for_ten_minutes_the_stated_tilt_covers_the_b
     assert not beyond, beyond[:5]
 
 
+def _xy_biases_unlearnt(
+    motion: Motion, seed: int, rate_hz: float = 10.0
+) -> tuple[list[ImuSample], list[GnssFix]]:
+    """IMU samples with x/y gyro biases of the turn-on spread a 20 s rest leaves unlearnt
+    (0.1 and -0.08 deg/s) and the datasheet's ARW; fixes with RTK's velocity noise."""
+    imu = imu_stream(
+        motion,
+        bias_g_rps=(0.1 * DEG_TO_RAD, -0.08 * DEG_TO_RAD, 0.0),
+        noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS,
+        noise_a_mps2=0.01,
+        seed=seed,
+    )
+    fixes = gnss_stream(
+        motion, antenna_lever_arm_m=LEVER, rate_hz=rate_hz, vel_noise_mps=0.02, seed=seed
+    )
+    return imu, fixes
+
+
 @pytest.mark.parametrize("name", ["observer", "ekf"])
 def test_creeping_before_the_heading_is_known_the_stated_tilt_covers_its_drift(
     name: str,
@@ -385,15 +404,7 @@ def test_creeping_before_the_heading_is_known_the_stated_tilt_covers_its_drift(
         pitch_rad=PITCH,
         yaw0_rad=YAW0,
     )
-    imu = imu_stream(
-        motion,
-        bias_g_rps=(0.1 * DEG_TO_RAD, -0.08 * DEG_TO_RAD, 0.0),
-        noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS,
-        noise_a_mps2=0.01,
-        seed=5,
-    )
-    fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, vel_noise_mps=0.02, seed=5)
-    out = solutions(_engine(name), imu, fixes, every=50)
+    out = solutions(_engine(name), *_xy_biases_unlearnt(motion, 5))
     beyond = _headless_tilts_beyond_stated(out, REST_S + 10.0)
     assert not beyond, beyond[:5]
 
@@ -486,14 +497,7 @@ def test_driving_on_before_the_heading_the_tilt_loop_stays_closed_through_a_reve
         pitch_rad=PITCH,
         yaw0_rad=YAW0,
     )
-    imu = imu_stream(
-        motion,
-        bias_g_rps=(0.1 * DEG_TO_RAD, -0.08 * DEG_TO_RAD, 0.0),
-        noise_g_rps=GYRO_ARW_PER_SAMPLE_RPS,
-        noise_a_mps2=0.01,
-        seed=7,
-    )
-    fixes = gnss_stream(motion, antenna_lever_arm_m=LEVER, rate_hz=1.0, vel_noise_mps=0.02, seed=7)
+    imu, fixes = _xy_biases_unlearnt(motion, 7, rate_hz=1.0)
     speeds = [math.hypot(*f.vel_ne_mps) for f in fixes if f.vel_ne_mps is not None]
     assert min(speeds[int(REST_S) + 5 :]) > 0.15  # no epoch at rest in the reversal
     out = solutions(_engine("observer"), imu, fixes, every=50)
