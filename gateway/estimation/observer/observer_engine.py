@@ -293,9 +293,10 @@ class ObserverEngine:
         self._g_learn = 0.0  # integral of dt / tau_g while learning
         self._t_bg_learnt_s: float | None = None  # when the x/y gyro biases last learnt
         self._a_learn = 0.0  # integral of w_z^2 / (omega_a (1 + (w_z tau)^2)) dt while learning
-        # where the x/y accelerometer bias learning started: estimate, its 1-sigma, exponent
-        # (a cold start's zeros and turn-on sigma; a seed's): :meth:`_sigma_ba_mps2`
-        self._ba_origin = (0.0, 0.0, cfg.accel_bias_sigma0_mps2, 0.0)
+        # where the x/y accelerometer bias learning started: estimate, its 1-sigma (None:
+        # the turn-on spread, :meth:`_turn_on_ba_mps2`), exponent (a cold start's zeros
+        # and turn-on sigma; a seed's): :meth:`_sigma_ba_mps2`
+        self._ba_origin: tuple[float, float, float | None, float] = (0.0, 0.0, None, 0.0)
         self._az_learn_s = 0.0  # time the z accelerometer bias has learnt on RTK heights
         self._lever_vd_prev_mps: float | None = None  # (C (w x l_imu))_d at the last learning
         self._e_var_mps4 = 0.0  # running variance of one horizontal e component
@@ -1421,11 +1422,13 @@ class ObserverEngine:
             # 0.23 stated (`short` seed 3, 1.2 s without IMU at 44.5 s).
             if not obs.learn or t_e - self._turned_s < self.cfg.learning_holdoff_s:
                 return
-            flt.start(obs.c_bp9, self._ba_origin[2], biases, self._bias_filter_noise())
+            sigma0 = self._ba_origin[2]
+            sigma0 = self._turn_on_ba_mps2() if sigma0 is None else sigma0
+            flt.start(obs.c_bp9, sigma0, biases, self._bias_filter_noise())
         f_p = ((row[_SF_N] - prow[_SF_N]) / interval_s, (row[_SF_E] - prow[_SF_E]) / interval_s)
         db = flt.epoch(t_e, e_ne, u_ne, f_p, obs.c_bp9, biases, sigma_v, obs.learn, track)
         obs.add_accel_bias_xy(*db)
-        sigma0, learnt = self.cfg.accel_bias_sigma0_mps2, flt.sigma_mps2
+        sigma0, learnt = self._turn_on_ba_mps2(), flt.sigma_mps2
         if learnt < REOPEN_ARMED_SHARE * sigma0 and flt.inconsistent():
             # the residual is not that of the biases the filter holds learnt: re-opened to
             # the turn-on spread, so the stated tilt covers them and turns learn them again
@@ -1491,7 +1494,7 @@ class ObserverEngine:
         obs = self._observer
         assert obs is not None
         cfg = self.cfg
-        sigma_a = max(cfg.accel_bias_sigma0_mps2, GRAVITY_MPS2 * change.angle_rad)
+        sigma_a = max(self._turn_on_ba_mps2(), GRAVITY_MPS2 * change.angle_rad)
         sigma_g = max(self._sigma_bg_rps(), change.rate_rps)
         flt = self._ba_filter
         if flt is not None and flt.started:
@@ -2096,6 +2099,7 @@ class ObserverEngine:
         if flt is not None and flt.started:
             return max(flt.sigma_mps2, ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale)
         bx0, by0, sigma0, a0 = self._ba_origin
+        sigma0 = self._turn_on_ba_mps2() if sigma0 is None else sigma0
         # with the filter configured, nothing learns them before it starts (eq. 12 is
         # off): turns then took the sigma down with the exponent while the bias stayed
         # (roll 0.75 deg off with 0.12 stated, the filter kept from starting on rough ground)
@@ -2108,10 +2112,21 @@ class ObserverEngine:
             sigma = max(sigma, shown * left / (1.0 - left))
         return max(sigma, ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale)
 
+    def _turn_on_ba_mps2(self) -> float:
+        """The accelerometer's turn-on bias spread, 1-sigma: the config's, as much larger as
+        the IMU's noise measured at rest is than the config's (as the residual floors and
+        the gyro bias prior of the accel-bias filter are: :meth:`_noise_as_measured`). A
+        unit that noisy is taken as that much worse a grade. Why: twice as noisy as its
+        datasheet (robustness `imu-noise-x2`, whose turn-on spread is doubled too), a
+        planter's x bias of 0.24 m/s^2 (2.4 sigma of the config's 0.1) went unlearnt for
+        an hour without a heading, roll and pitch 1.3-2.0 deg off with 0.54-0.65 stated
+        (`field` seed 591, 5,990 frames beyond 0.1 deg + 3 sigma)."""
+        return self.cfg.accel_bias_sigma0_mps2 * self._floor_scale
+
     def _sigma_baz_mps2(self) -> float:
         """z accelerometer bias 1-sigma: the turn-on sigma (or the seed's) decaying with
         the low-pass of :meth:`_learn_accel_bias_z`, floored."""
-        sigma0 = self.cfg.accel_bias_sigma0_mps2
+        sigma0 = self._turn_on_ba_mps2()
         decay = math.exp(-self._az_learn_s / self.cfg.accel_bias_z_tau_s)
         return max(sigma0 * decay, ACCEL_BIAS_Z_FLOOR_MPS2 * self._floor_scale)
 
