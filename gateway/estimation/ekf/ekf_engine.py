@@ -1059,7 +1059,8 @@ class EkfEngine:
         self._courses.add(t_e, wrap_pi(course - yaw_e), sigma_v / speed)
         cfg = self.cfg
         return self._courses.alignment(
-            self._bias_z_sigma_rps(t_e), speed, cfg.align_min_speed_mps,
+            self._bias_z_sigma_rps(t_e), self._arw() * self._gyro_noise_excess(), speed,
+            cfg.align_min_speed_mps,
             cfg.navigating_heading_sigma_deg,
             self._hint is not None or self._direction_since_rest is not None,
         )  # fmt: skip

@@ -1688,6 +1688,7 @@ class ObserverEngine:
                 self._courses.add(t_e, wrap_pi(cog_ref_rad - row[_PSI]), sigma_v / speed_ref_mps)
                 found = self._courses.alignment(
                     self._heading.kf.sigma_rps,
+                    self._gyro_arw,
                     speed_ref_mps,
                     cfg.align_min_speed_mps,
                     cfg.navigating_heading_sigma_deg,
