@@ -1058,12 +1058,16 @@ class EkfEngine:
         sigma_v = math.hypot(measured[1], sig_lever)
         self._courses.add(t_e, wrap_pi(course - yaw_e), sigma_v / speed)
         cfg = self.cfg
+        known = self._hint is not None or self._direction_since_rest is not None
+        arw = self._arw() * self._gyro_noise_excess()
         return self._courses.alignment(
-            self._bias_z_sigma_rps(t_e), self._arw() * self._gyro_noise_excess(), speed,
+            self._bias_z_sigma_rps(t_e),
+            arw,
+            speed,
             cfg.align_min_speed_mps,
             cfg.navigating_heading_sigma_deg,
-            self._hint is not None or self._direction_since_rest is not None,
-        )  # fmt: skip
+            known,
+        )
 
     def _bias_z_sigma_rps(self, t_e: float) -> float:
         """z gyro bias 1-sigma at ``t_e`` before the filter runs: the seed's or the

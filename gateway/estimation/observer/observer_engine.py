@@ -1422,9 +1422,7 @@ class ObserverEngine:
             # 0.23 stated (`short` seed 3, 1.2 s without IMU at 44.5 s).
             if not obs.learn or t_e - self._turned_s < self.cfg.learning_holdoff_s:
                 return
-            sigma0 = self._ba_origin[2]
-            sigma0 = self._turn_on_ba_mps2() if sigma0 is None else sigma0
-            flt.start(obs.c_bp9, sigma0, biases, self._bias_filter_noise())
+            flt.start(obs.c_bp9, self._ba_origin_sigma_mps2(), biases, self._bias_filter_noise())
         f_p = ((row[_SF_N] - prow[_SF_N]) / interval_s, (row[_SF_E] - prow[_SF_E]) / interval_s)
         db = flt.epoch(t_e, e_ne, u_ne, f_p, obs.c_bp9, biases, sigma_v, obs.learn, track)
         obs.add_accel_bias_xy(*db)
@@ -2099,8 +2097,8 @@ class ObserverEngine:
         flt = self._ba_filter
         if flt is not None and flt.started:
             return max(flt.sigma_mps2, ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale)
-        bx0, by0, sigma0, a0 = self._ba_origin
-        sigma0 = self._turn_on_ba_mps2() if sigma0 is None else sigma0
+        bx0, by0, _, a0 = self._ba_origin
+        sigma0 = self._ba_origin_sigma_mps2()
         # with the filter configured, nothing learns them before it starts (eq. 12 is
         # off): turns then took the sigma down with the exponent while the bias stayed
         # (roll 0.75 deg off with 0.12 stated, the filter kept from starting on rough ground)
@@ -2112,6 +2110,12 @@ class ObserverEngine:
             shown = max(abs(ba[0] - bx0), abs(ba[1] - by0))
             sigma = max(sigma, shown * left / (1.0 - left))
         return max(sigma, ACCEL_BIAS_FLOOR_MPS2 * self._floor_scale)
+
+    def _ba_origin_sigma_mps2(self) -> float:
+        """The x/y accelerometer bias 1-sigma where its learning started: a seed's or a
+        bias change's, else the turn-on spread."""
+        sigma0 = self._ba_origin[2]
+        return self._turn_on_ba_mps2() if sigma0 is None else sigma0
 
     def _turn_on_ba_mps2(self) -> float:
         """The accelerometer's turn-on bias spread, 1-sigma: the config's, as much larger as
