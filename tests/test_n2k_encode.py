@@ -361,6 +361,19 @@ def test_status_at_tilt_sigma_limit() -> None:
     assert [sigma_byte(x) for x in (0.0, 2.54, 2.55, 10.0)] == [0, 254, 255, 255]
 
 
+def test_the_tilt_sigma_is_rounded_up_never_to_a_better_accuracy() -> None:
+    """The bus states roll/pitch within its 0.01 deg steps: 0.064 deg goes out as 0.07 (the
+    nearest, 0.06, claimed an accuracy the engine did not have); a sigma on a step stays it,
+    one just above 2.54 deg is beyond the field (unknown or >= 2.55)."""
+
+    def sigma_byte(deg: float) -> int:
+        s = Solution(t=T, mode=Mode.NAVIGATING, sigma_tilt_rad=math.radians(deg))
+        return proprietary(Pgn.NAVGW_STATUS, s)[7]
+
+    steps = [sigma_byte(x) for x in (0.064, 0.0601, 0.07, 0.06, 0.37, 0.001, 2.541)]
+    assert steps == [7, 7, 7, 6, 37, 1, 255]
+
+
 def test_nmea2000_recognises_the_proprietary_header() -> None:
     decoder = NMEA2000Decoder()
     for pgn in (Pgn.NAVGW_GYRO_BIAS, Pgn.NAVGW_ACCEL_BIAS, Pgn.NAVGW_STATUS):

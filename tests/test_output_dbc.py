@@ -189,9 +189,10 @@ def test_cantools_decode_reads_a_candump_log_of_the_output(tmp_path: Path) -> No
 # The packers compiled from the DBC (frame_codec.py, issue 14) against cantools' own encode
 # and decode of the same DBC. The expected raw value of each field is the policy of
 # frame_codec's docstring, written out here independently of the packers: None and NaN are
-# NOT_AVAILABLE; a scaled value that is not finite, or rounds (half to even) outside the
-# range [min|max], is OUT_OF_RANGE, or NOT_AVAILABLE for a field without that code; a field
-# with neither cannot carry it (EncodeError). Reserved fields are all ones.
+# NOT_AVAILABLE; a scaled value that is not finite, or rounds (half to even; up for a SIGMA*
+# field, an accuracy) outside the range [min|max], is OUT_OF_RANGE, or NOT_AVAILABLE for a
+# field without that code; a field with neither cannot carry it (EncodeError). Reserved
+# fields are all ones.
 
 #: Every message the gateway encodes through FrameCodec.
 ENCODED = sorted({layout.message for layout in LAYOUTS.values()} | {"ADDRESS_CLAIM"})
@@ -220,8 +221,10 @@ def expected_raw(signal: Signal, value: object) -> int:
         candidates = [not_available]
     else:
         scaled = (value - float(signal.offset)) / float(signal.scale)  # type: ignore[operator]
-        if math.isfinite(scaled) and lo <= round(scaled) <= hi:
-            return round(scaled)
+        if math.isfinite(scaled):
+            sent = math.ceil(scaled - 1e-9) if signal.name.startswith("SIGMA") else round(scaled)
+            if lo <= sent <= hi:
+                return sent
         candidates = [out_of_range, not_available]
     for raw in candidates:
         if raw is not None:

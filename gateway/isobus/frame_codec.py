@@ -9,6 +9,9 @@ for signed fields) and ``OUT_OF_RANGE`` (one less). Policy, applied to every sig
   field has no out-of-range code, e.g. NAVGW_STATUS tilt sigma): it never wraps and is never
   clamped to a plausible-looking number.
 - Signals named ``RESERVED*`` are sent as all ones and are not passed in.
+- Signals named ``SIGMA*`` carry an accuracy, a 1-sigma: rounded up to the field's
+  resolution, never to the nearest (a tilt sigma of 0.064 deg went out as 0.06, a better
+  accuracy than the engine had; now 0.07). Other values round to the nearest, half to even.
 
 The policy is :meth:`_Field.raw`; cantools' ``Message.encode`` packed the raw values until
 issue 14 (6-20 us a frame). Now each message is compiled once, from the DBC alone, into a
@@ -36,6 +39,10 @@ from cantools.database.can import Message, Signal
 NOT_AVAILABLE = "NOT_AVAILABLE"
 OUT_OF_RANGE = "OUT_OF_RANGE"
 RESERVED_PREFIX = "RESERVED"
+SIGMA_PREFIX = "SIGMA"
+#: Raw units a stated sigma may exceed a step and still be sent as that step: the float error
+#: of (value - offset) / scale (0.07 / 0.01 is 7.000000000000001), not a rounding down.
+ROUND_UP_SLACK = 1e-9
 
 #: A physical value as the encoders hand it over (bools and IntEnums are ints).
 Value = float | int | None
@@ -56,6 +63,7 @@ class _Field:
     raw_max: int
     not_available: int | None
     out_of_range: int | None
+    round_up: bool  # a SIGMA* field: an accuracy, never sent smaller than it is
 
     @classmethod
     def of(cls, signal: Signal) -> _Field:
@@ -71,6 +79,7 @@ class _Field:
             math.floor((hi - offset) / scale + 1e-9),
             choices.get(NOT_AVAILABLE),
             choices.get(OUT_OF_RANGE),
+            signal.name.startswith(SIGMA_PREFIX),
         )
         if field.raw_min < _bit_min(signal) or field.raw_max > _bit_max(signal):
             raise EncodeError(f"signal {signal.name}: range [{lo}|{hi}] exceeds its bits")
@@ -83,7 +92,7 @@ class _Field:
         scaled = (value - self.offset) / self.scale
         if not math.isfinite(scaled):
             return self._special(self.out_of_range, value)
-        raw = round(scaled)
+        raw = math.ceil(scaled - ROUND_UP_SLACK) if self.round_up else round(scaled)
         if self.raw_min <= raw <= self.raw_max:
             return raw
         return self._special(self.out_of_range, value)
@@ -190,6 +199,7 @@ class FrameCodec:
                     below=_below(field.raw_max),
                     start=slot.start,
                     mask=slot.mask if slot.is_signed else None,
+                    inline=not field.round_up,
                 )
             )
         return out
@@ -207,6 +217,7 @@ class _Compiled:
     below: float  # [raw_min, raw_max], whatever the tie-breaking
     start: int
     mask: int | None  # two's complement mask of a signed field; None: unsigned
+    inline: bool  # False: every value goes through _Field.raw (a SIGMA* field's rounding up)
 
 
 def packer_source(name: str, length: int, base: int, fields: list[_Compiled]) -> str:
@@ -219,7 +230,8 @@ def packer_source(name: str, length: int, base: int, fields: list[_Compiled]) ->
       ``round(scaled)``: such a value is finite and rounds (half to even, as
       :meth:`_Field.raw`) into the raw range, the case in which :meth:`_Field.raw` returns
       exactly that;
-    - for anything else, ``raw_i(v)``: :meth:`_Field.raw` itself.
+    - for anything else, ``raw_i(v)``: :meth:`_Field.raw` itself, which a field that is
+      not ``inline`` (a ``SIGMA*`` one, rounded up; one a frame) takes for every value.
 
     Any exception (a missing signal, a value that is no number, a value the field cannot
     carry) reruns the message through ``fallback``, the codec's step-by-step reference path,
@@ -228,14 +240,8 @@ def packer_source(name: str, length: int, base: int, fields: list[_Compiled]) ->
     lines = [f"def pack(values):  # {name}", "    try:"]
     terms = [hex(base)] if base else []
     for i, f in enumerate(fields):
-        in_range = f"{f.above!r} < (s := {f.scaled}) < {f.below!r}"
         lines.append(f"        v = values[{f.name!r}]")
-        if f.not_available is None:
-            lines.append(f"        if v is not None and {in_range}:")
-        else:
-            lines += ["        if v is None:", f"            r{i} = {f.not_available}"]
-            lines.append(f"        elif {in_range}:")
-        lines += [f"            r{i} = round(s)", "        else:", f"            r{i} = {f.raw}(v)"]
+        lines += _raw_lines(f"r{i}", f)
         term = f"r{i}" if f.mask is None else f"(r{i} & {f.mask:#x})"
         terms.append(f"{term} << {f.start}" if f.start else term)
     lines += [
@@ -244,6 +250,19 @@ def packer_source(name: str, length: int, base: int, fields: list[_Compiled]) ->
         f"    return ({' | '.join(terms) or '0'}).to_bytes({length}, 'little')",
     ]
     return "\n".join(lines) + "\n"
+
+
+def _raw_lines(r: str, f: _Compiled) -> list[str]:
+    """The packer's lines that set ``r`` to the raw value of ``v`` for the field ``f``."""
+    if not f.inline:
+        return [f"        {r} = {f.raw}(v)"]
+    in_range = f"{f.above!r} < (s := {f.scaled}) < {f.below!r}"
+    if f.not_available is None:
+        lines = [f"        if v is not None and {in_range}:"]
+    else:
+        lines = ["        if v is None:", f"            {r} = {f.not_available}"]
+        lines.append(f"        elif {in_range}:")
+    return [*lines, f"            {r} = round(s)", "        else:", f"            {r} = {f.raw}(v)"]
 
 
 @cache
