@@ -51,3 +51,40 @@ def test_the_alignment_s_sigma_is_the_spread_of_its_error(
         sigmas.append(sigma)
     ratio = math.sqrt(np.mean(np.square(errors)) / np.mean(np.square(sigmas)))
     assert 0.9 < ratio < 1.1, ratio
+
+
+def test_a_refining_engine_aligns_on_the_best_window_after_the_longest() -> None:
+    """Under the alignment speed, courses that never reach NAVIGATING's 0.5 deg (1 Hz, 2.6
+    deg each, a z bias of 0.035 deg/s 1-sigma against them): an engine whose filter goes on
+    estimating the heading (``refined``, the EKF) aligns on the best window once the courses
+    span the longest, stating its sigma; one that takes the alignment as its heading (the
+    observer) waits. Courses too far apart to be one drive (their sigma beyond a third of
+    the gate) give neither a heading."""
+    gate = math.radians(10.0)
+
+    def found(course_deg: float, seconds: int, refined: bool) -> tuple[float, float] | None:
+        courses = CourseAlignment(gate)
+        rng = np.random.default_rng(3)
+        for k in range(seconds + 1):
+            courses.add(
+                float(k), math.radians(course_deg) * rng.standard_normal(), math.radians(course_deg)
+            )
+            out = courses.alignment(
+                math.radians(0.035),
+                2 * ARW_DATASHEET_RAD_PER_SQRT_S,
+                0.5,
+                1.5,
+                0.5,
+                True,
+                refined=refined,
+            )
+            if out is not None:
+                return float(k), out[1]
+        return None
+
+    ekf = found(2.6, 120, refined=True)
+    assert ekf is not None
+    assert ekf[0] == 60.0  # the first epoch at which the courses span the 60 s window
+    assert math.radians(0.5) < ekf[1] < math.radians(1.0)
+    assert found(2.6, 120, refined=False) is None
+    assert found(20.0, 120, refined=True) is None  # 5.1 deg at best: beyond gate / 3

@@ -1076,6 +1076,7 @@ class EkfEngine:
             cfg.align_min_speed_mps,
             cfg.navigating_heading_sigma_deg,
             known,
+            refined=True,
         )
 
     def _bias_z_sigma_rps(self, t_e: float) -> float:
