@@ -90,16 +90,16 @@ class CourseAlignment:
         mast rocking, took the first heading 0.7 deg off where the last second's are 0.3.
 
         ``refined``: the engine's filter goes on estimating the heading and the z bias from
-        every course (the EKF): once the courses span the longest window it takes the best
-        window's whatever its sigma (up to a third of the gate, within which the courses are
-        one drive) and says DEGRADED until its own heading sigma is NAVIGATING's. A planter
-        at 0.5 m/s with a 1 Hz receiver and a unit twice as noisy as its datasheet never
-        had a window within 0.5 deg (2.6 deg a course, the z bias's walk between them): no
-        heading, no position and, the levelled tilt's sigma grown past the field's range,
-        no roll or pitch for an hour (`field` seed 578); aligned on 0.7 deg, the EKF was
-        NAVIGATING 80 % of it. The observer's heading channel takes the alignment as its
-        heading and waits: aligned so, it read the error left for a z bias change and sent
-        headings beyond their accuracy."""
+        every course (the EKF): once it has taken courses for as long as the longest window
+        it takes the best window's whatever its sigma (up to a third of the gate, within
+        which the courses are one drive) and says DEGRADED until its own heading sigma is
+        NAVIGATING's. A planter at 0.5 m/s with a 1 Hz receiver and a unit twice as noisy
+        as its datasheet never had a window within 0.5 deg (2.6 deg a course, the z bias's
+        walk between them): no heading, no position and, the levelled tilt's sigma grown
+        past the field's range, no roll or pitch for an hour (`field` seed 578); aligned on
+        0.7 deg, the EKF was NAVIGATING 80 % of it. The observer's heading channel takes
+        the alignment as its heading and waits: aligned so, it read the error left for a z
+        bias change and sent headings beyond their accuracy."""
         if speed_mps >= align_speed_mps:
             return self.offset(sigma_bz_rps, arw_rad_per_sqrt_s, ALIGN_WINDOW_S)
         if not direction_known:
