@@ -264,15 +264,17 @@ def test_a_course_in_its_noise_tail_at_the_alignment_speed_is_not_sent_as_the_he
 SLOW_TURN_RPS = 0.1
 
 
-def _slow_drive(speed_mps: float) -> Motion:
-    """20 s parked on the slope, a gentle start to ``speed_mps``, 20 s on, a 57 deg turn, 40 s
-    on: a vineyard tractor, a planter."""
+def _slow_drive(
+    speed_mps: float, on_s: float = 20.0, turn_rps: float = SLOW_TURN_RPS, after_s: float = 40.0
+) -> Motion:
+    """20 s parked on the slope, a gentle start to ``speed_mps``, ``on_s`` on, a 10 s turn at
+    ``turn_rps`` (57 deg), ``after_s`` on: a vineyard tractor, a planter."""
     segments = [
         Segment(REST_S),
         Segment(speed_mps / 0.3, accel_mps2=0.3),
-        Segment(20.0),
-        Segment(10.0, yaw_rate_rps=SLOW_TURN_RPS),
-        Segment(40.0),
+        Segment(on_s),
+        Segment(10.0, yaw_rate_rps=turn_rps),
+        Segment(after_s),
     ]
     return Motion(segments, roll_rad=ROLL, pitch_rad=PITCH, yaw0_rad=YAW0)
 
@@ -328,23 +330,12 @@ def test_a_planter_whose_courses_never_give_navigating_s_accuracy_aligns_the_ekf
     of courses is within NAVIGATING's 0.5 deg, and neither engine had a heading, a position
     or, once the levelled tilt's sigma outgrew the field, a roll and pitch (an hour of a
     planter on `field` seed 578). The EKF, whose filter goes on with every course, now
-    aligns on the best window once the courses span a minute (:meth:`CourseAlignment.
+    aligns on the best window once it has taken courses for a minute (:meth:`CourseAlignment.
     alignment`, ``refined``) and says DEGRADED until its own heading sigma is within 0.5
     deg: every heading it sends otherwise within 0.1 + 3 x 0.5 deg, every roll and pitch
     within 0.1 deg + 3 stated sigma, NAVIGATING at the end. The observer waits (its
     heading channel takes the alignment as its heading)."""
-    motion = Motion(
-        [
-            Segment(REST_S),
-            Segment(0.55 / 0.3, accel_mps2=0.3),
-            Segment(100.0),
-            Segment(10.0, yaw_rate_rps=0.05),
-            Segment(150.0),
-        ],
-        roll_rad=ROLL,
-        pitch_rad=PITCH,
-        yaw0_rad=YAW0,
-    )
+    motion = _slow_drive(0.55, on_s=100.0, turn_rps=0.05, after_s=150.0)
     imu = imu_stream(
         motion,
         bias_g_rps=(0.0, 0.0, 0.02 * DEG_TO_RAD),
