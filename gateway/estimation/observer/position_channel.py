@@ -137,6 +137,11 @@ class PositionChannel:
             a.b_m = 0.0
         self.height_taken()
 
+    @property
+    def interval_s(self) -> float:
+        """The last prediction's interval: the receiver's epoch interval, s."""
+        return self._interval_s
+
     def height_taken(self) -> None:
         """The height loop took the fix: its error settles towards the fix's."""
         settle = math.exp(-self._interval_s / HEIGHT_SETTLE_S)
