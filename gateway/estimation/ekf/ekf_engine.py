@@ -1060,8 +1060,8 @@ class EkfEngine:
         if vel is None or measured is None or speed < self.cfg.cog_min_speed_mps:
             return None
         w_e, sig_lever = self._lever_rate(t_e, self._l_ant_m)
-        if self._direction_since_rest is None and self._direction_known(t_e, row):
-            self._direction_since_rest = self._forward_since_rest(row)
+        if self._direction_since_rest is None:
+            self._direction_since_rest = self._direction_from_rest(t_e, row)
         forward = self._forward_at(vel, row, w_e)
         course = heading_from_antenna_course(vel, row[ROW_C], w_e, self._l_ant_b, forward)
         sigma_v = math.hypot(measured[1], sig_lever)
@@ -1099,22 +1099,19 @@ class EkfEngine:
         it outranks the velocity change, which a tilt left by levelling while braking turns
         round), else :meth:`_forward_since_rest`."""
         if self._hint is None:
-            return self._forward_since_rest(row)
+            return self._forward_since_rest()
         c = row[ROW_C]
         if_forward = heading_from_antenna_course(vel_ne_mps, c, w_e, self._l_ant_b, True)
         return self._hint.forward(if_forward, math.atan2(c[3], c[0]))
 
-    def _forward_since_rest(self, row: Array) -> bool:
-        """Driving forward at ``row``: as the velocity change since the last rest said
-        once it could (kept until the next rest, as the observer keeps it: the tilt's
-        share of the change, g theta t, soon outgrows it; a planter with a 1 Hz receiver
-        lost it 5 s after pulling away, before its courses gave a heading, and never
-        aligned), else its INS velocity against that of the last epoch at rest along body
-        x (:func:`along_body_x`); forward if there was none."""
-        if self._direction_since_rest is not None:
-            return self._direction_since_rest
-        dv_x = self._dv_x_since_rest(row)
-        return dv_x is None or dv_x >= 0.0
+    def _forward_since_rest(self) -> bool:
+        """Driving forward: as the velocity change since the last rest said once it could
+        (:meth:`_direction_from_rest`; kept until the next rest, as the observer keeps it: the
+        tilt's share of the change, g theta t, soon outgrows it; a planter with a 1 Hz
+        receiver lost it 5 s after pulling away, before its courses gave a heading, and
+        never aligned), else forward (at ``align_min_speed_mps``, as the observer: vehicles
+        reverse slower, and the sign of a change within its noise is the noise's)."""
+        return self._direction_since_rest is not False
 
     def _dv_x_since_rest(self, row: Array) -> float | None:
         """The INS velocity change along body x from the last epoch at rest to ``row``,
@@ -1125,15 +1122,17 @@ class EkfEngine:
         c = to_mat9(row[ROW_C].reshape(3, 3))
         return along_body_x(float(dv[0]), float(dv[1]), c)
 
-    def _direction_known(self, t_e: float, row: Array) -> bool:
-        """Does the velocity change since the last rest tell forward from reversing at
-        ``row`` (epoch time ``t_e``), before the heading is known? Beyond what the levelled
-        tilt puts into it (:func:`direction_known`)."""
+    def _direction_from_rest(self, t_e: float, row: Array) -> bool | None:
+        """Forward (True) or reversing (False) at ``row`` (epoch time ``t_e``), before the
+        heading is known, where the velocity change since the last rest tells them apart:
+        beyond what the levelled tilt puts into it (:func:`direction_known`); else None."""
         dv_x = self._dv_x_since_rest(row)
         if dv_x is None or self._rest_epoch is None:
-            return False
+            return None
         since_s = t_e - self._rest_epoch[0]
-        return direction_known(dv_x, self._levelled_tilt_sigma_rad(t_e), since_s)
+        if not direction_known(dv_x, self._levelled_tilt_sigma_rad(t_e), since_s):
+            return None
+        return dv_x >= 0.0
 
     def _levelled_tilt_sigma_rad(self, t_e: float) -> float:
         """Roll/pitch 1-sigma at ``t_e`` before the filter runs: the levelling's and the gyro

@@ -1198,10 +1198,10 @@ class ObserverEngine:
         through the pull-away as they do once the heading is known. Forward or reversing is
         what the inertial velocity change along x since the rest says, once it is beyond
         :data:`DIRECTION_SIGMAS` of what the tilt left by a levelling on a moving window puts
-        into it (0.1 m/s at the first epoch, against a few mm/s after a start at rest, but
-        0.08 m/s after a restart levelled while braking); until then the loop stays open,
-        and the heading's alignment takes the direction the change has at that epoch (over
-        the whole pull-away then, as the EKF does).
+        into it (:meth:`_direction_tilt_rad`); until then the loop stays open, and the
+        heading's alignment at ``align_min_speed_mps`` takes the vehicle as driving forward
+        (as the EKF does: vehicles reverse slower, and the sign of a change within its noise
+        is the noise's).
         """
         if self._at_rest:
             self._rest_row, self._forward, self._forward_known = row, None, False
@@ -1213,20 +1213,12 @@ class ObserverEngine:
             return None
         since_s = t_e - rest[_T]
         if not self._forward_known:
-            # the change so far; the heading's alignment takes the latest
             dn, de = row[_SF_N] - rest[_SF_N], row[_SF_E] - rest[_SF_E]
             dv_x = along_body_x(dn, de, c_e)
-            self._forward = dv_x >= 0.0
-            # At rest the tilt loop has made the mean horizontal f_p zero, whatever the
-            # accelerometer bias; what it has not yet taken out of a levelling on a moving
-            # window adds g theta t to the change (a restart levelled while braking, 1.4 deg
-            # of pitch left after 3 s at rest: 0.08 m/s in the 0.3 s to the first epoch, with
-            # 0.1 m/s of true speed; decided there, the heading aligned 180 deg off for good,
-            # and the tilt went 13 deg off: steep-turns seed 94 with a stall at 160 s)
-            sigma_theta = math.sqrt(self._sigma_level_rad**2 + self._noise_tilt_var)
-            self._forward_known = direction_known(dv_x, sigma_theta, since_s)
+            self._forward_known = direction_known(dv_x, self._direction_tilt_rad(since_s), since_s)
             if not self._forward_known:
                 return None
+            self._forward = dv_x >= 0.0
         if since_s > BODY_X_LOOP_S and not self._direction_holds(fix, row, c_e):
             self._body_x_last = None
             return None
@@ -1236,6 +1228,25 @@ class ObserverEngine:
         v_imu = velocity_at((vn, ve, 0.0), c_e, w_lever, self._l_ant_f, self._l_imu_f)
         self._body_x_last = (row, v_imu[0], v_imu[1])
         return v_imu[0], v_imu[1]
+
+    def _direction_tilt_rad(self, since_s: float) -> float:
+        """The tilt error, 1-sigma, whose g theta t may turn the inertial velocity change
+        along body x ``since_s`` after a rest round (:func:`direction_known`).
+
+        At rest the tilt loop has made the mean horizontal f_p zero, whatever the
+        accelerometer bias, but not what a levelling on a moving window left (a restart
+        levelled while braking, 1.4 deg of pitch left after 3 s at rest: 0.08 m/s in the
+        0.3 s to the first epoch, with 0.1 m/s of true speed; decided there, the heading
+        aligned 180 deg off for good and the tilt went 13 deg off: steep-turns seed 94
+        with a stall at 160 s), nor an x/y gyro bias not yet learnt: the loop holds the
+        tilt b_g tau off with f_p's mean g b_g tau, and from the rest on, open until the
+        direction is known, the tilt drifts b_g t (the change's mean tilt: half that).
+        Without the bias, a unit with 0.58 deg/s on y (3 sigma of a noisy unit's spread,
+        `slope-start` seed 612 of imu-noise-x2+fast-wide) 4.5 s at rest from a cold start
+        read its pull-away as a reversal, closed the loop on it (pitch 4 deg off with 1.3
+        stated) and aligned the heading 180 deg off, NAVIGATING."""
+        bias_tilt = self._sigma_bg_rps() * (self._tilt_loop.tau_now_s + 0.5 * since_s)
+        return math.sqrt(self._sigma_level_rad**2 + self._noise_tilt_var + bias_tilt**2)
 
     def _direction_holds(self, fix: GnssFix, row: _Row, c_e: Mat9) -> bool:
         """Past :data:`BODY_X_LOOP_S` after a rest, with the heading still unknown: may the
