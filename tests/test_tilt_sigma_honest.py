@@ -28,6 +28,7 @@ from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, SimRun, gateway_config, generate, scenario_from_toml
 from sim_bus.truth import Truth
 from tests.kinematics import (
+    GYRO_ARW_PER_SAMPLE_RPS,
     IMU_DT_S,
     ChassisStep,
     Motion,
@@ -197,6 +198,39 @@ def test_a_paper_sized_bias_learnt_in_the_first_turn_is_within_the_stated_accura
     assert not beyond, beyond[:5]
     if engine is Engine.EKF or accel_bias_filter:  # eq. (12) needs more than one turn
         assert last_err < 0.2
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_a_noisier_unit_s_wider_turn_on_bias_is_within_the_stated_accuracy(
+    engine: Engine,
+) -> None:
+    """A unit twice as noisy as its datasheet (gyro ARW), its y accelerometer bias 0.3
+    m/s^2: 1.5 sigma of such a unit's doubled spread, 3 of the datasheet unit's the stated
+    accuracy covered (`accel_bias_sigma_covered_mps2`). The observer's turn-on prior grows
+    with the noise excess measured at rest; the EKF's covered spread did not, and it stated
+    0.59 deg with roll 1.9 deg off (a noisy unit's 0.24 m/s^2 in the first U-turn of
+    `float-spells` seed 612, gnss-20hz+imu-noise-x2: 63 frames beyond). Every roll sent,
+    from the levelling at rest on, within 0.1 deg + 3 stated sigmas."""
+    drive = Motion([Segment(15.0), Segment(5.0, accel_mps2=0.6), Segment(40.0)], yaw0_rad=0.0)
+    cfg = GatewayConfig(vehicle=VehicleSection(antenna_lever_arm_m=(0.3, 0.0, -3.0)))
+    cfg = cfg.with_engine(engine)
+    c_bn = state_at(drive, 0.0).c_bn[0]
+    roll_true = math.atan2(c_bn[2, 1], c_bn[2, 2])
+    imu = imu_stream(drive, bias_a_mps2=(0.0, 0.3, 0.0), noise_a_mps2=0.02,
+                     noise_g_rps=2.0 * GYRO_ARW_PER_SAMPLE_RPS, seed=4)  # fmt: skip
+    fixes = gnss_stream(drive, antenna_lever_arm_m=cfg.vehicle.antenna_lever_arm_m)
+    estimator = make_engine(cfg)
+    beyond, checked = [], 0
+    for k, s in fed(estimator, imu, fixes):
+        sol = estimator.solution()
+        if k % 50 or sol.roll_rad is None or sol.mode in (Mode.DEGRADED, Mode.FAULT):
+            continue
+        assert sol.sigma_tilt_rad is not None
+        checked += 1
+        off_deg = math.degrees(abs(sol.roll_rad - roll_true))
+        beyond += beyond_stated(motion_time(s.t), off_deg, sol.sigma_tilt_rad)
+    assert checked > 200
+    assert not beyond, beyond[:5]
 
 
 def test_a_warm_start_from_a_run_that_never_turned_states_the_bias_it_could_not_see() -> None:

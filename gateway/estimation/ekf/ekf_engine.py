@@ -213,6 +213,7 @@ class EkfEngine:
         self._q_c = np.zeros(N_STATES)
         self._ins: Strapdown | None = None
         self._p: Array | None = None  # error covariance (19, 19); None until heading is known
+        self._unit_excess_taken = 1.0  # the noise excess the filter took (_noise_as_measured)
         self._chassis_pitch_rad = 0.0  # the chassis's pitch against its track (CHASSIS)
         # the receiver's position error (FIX states): estimate, white and wandering variance
         self._fix_err_ned_m = np.zeros(3)
@@ -897,7 +898,7 @@ class EkfEngine:
         row_aligned = hist.at(t_e)
         assert row_aligned is not None
         self._p = np.zeros((N_STATES, N_STATES))
-        tun = self._noise_as_measured(tun)
+        tun = self._noise_as_measured()
         ins.take_interval()
         sig_bg = self._levelled_gyro_bias_sigma_rps()
         sig_ba = tun.sigma_bias_a0_mps2
@@ -1010,7 +1011,7 @@ class EkfEngine:
         if excess > 0.0:
             self._reopen_heading(excess)
 
-    def _noise_as_measured(self, tun: EkfTuning) -> EkfTuning:
+    def _noise_as_measured(self) -> EkfTuning:
         """The white rate and acceleration noise the IMU showed at rest, where it is more
         than the config's (``[ekf] vibration_*``, :mod:`gateway.estimation.imu_noise`): the
         process noise of an installation on a rough engine. Set as the filter starts.
@@ -1022,9 +1023,11 @@ class EkfEngine:
         under ``vibration_accel_mps2``'s, so it showed no excess) while its in-run y bias
         wandered twice as far: 0.013 m/s^2 off with 0.006 stated, roll 1.3 times its sigma
         RMS (headland-reversing seed 560, imu-noise-x2)."""
+        tun = self._tuning
+        assert tun is not None
         q_g, q_a = tun.q_gyro_rad2_per_s, tun.q_accel_m2_per_s3
-        dt = self._imu_dt_s
-        r_g, r_a = self._noise.excess(math.sqrt(q_g / dt), math.sqrt(q_a / dt))
+        r_g, r_a = self._noise_excess()
+        self._unit_excess_taken = max(r_g, r_a)
         if (r_g, r_a) == (1.0, 1.0):
             return tun
         log.info(
@@ -1155,11 +1158,16 @@ class EkfEngine:
         much larger, as the observer takes them. A unit twice as noisy as its datasheet
         (robustness `imu-noise-x2`), a planter at 1 Hz, sent roll 3.4 deg off with 0.86
         stated before its first heading."""
+        return self._noise_excess()[0]
+
+    def _noise_excess(self) -> tuple[float, float]:
+        """How many times the gyro and accelerometer noise measured at rest are the
+        tuning's (:meth:`ImuNoiseMeter.excess`)."""
         tun = self._tuning
         assert tun is not None
         dt = self._imu_dt_s
         sigma_g = math.sqrt(tun.q_gyro_rad2_per_s / dt)
-        return self._noise.excess(sigma_g, math.sqrt(tun.q_accel_m2_per_s3 / dt))[0]
+        return self._noise.excess(sigma_g, math.sqrt(tun.q_accel_m2_per_s3 / dt))
 
     def _levelled_gyro_bias_sigma_rps(self) -> float:
         """Gyro bias 1-sigma before the filter runs: the seed's (x/y, with the rest mean's),
@@ -1222,15 +1230,28 @@ class EkfEngine:
         P0's sigma), had roll 1.36 deg off with 0.30 stated from the start's rest to the
         first turn (field seed 1: 1094 frames beyond 0.1 deg + 3 sigma; none now); a warm
         start from a run that never turned stated the seed's 0.29 deg, parked.
+
+        The spread covered is as much wider as the unit is noisier than its config
+        (:meth:`_unit_noise_excess`), as the observer's turn-on prior is: a unit twice as
+        noisy as its datasheet with 0.22/0.24 m/s^2 of x/y bias (2.4 sigma of 0.1) sent
+        roll 1.05 deg off with 0.30 stated in its first U-turn (`float-spells` seed 612 of
+        gnss-20hz+imu-noise-x2, 63 frames beyond 0.1 deg + 3 sigma).
         """
         tun = self._tuning
         assert tun is not None
         var0 = tun.sigma_bias_a0_mps2**2
-        extra = self.cfg.accel_bias_sigma_covered_mps2**2 - var0
+        covered = self.cfg.accel_bias_sigma_covered_mps2 * self._unit_noise_excess()
+        extra = covered * covered - var0
         if extra <= 0.0:
             return 0.0
         r = min(1.0, var_ba / var0)
         return r * r * extra
+
+    def _unit_noise_excess(self) -> float:
+        """How many times noisier than its config the unit is, the larger of gyro and
+        accelerometer (>= 1): at rest before the filter runs (:class:`ImuNoiseMeter`), the
+        ratio the filter took once it runs (:meth:`_noise_as_measured`)."""
+        return self._unit_excess_taken if self._p is not None else max(self._noise_excess())
 
     def _drift_var_rad2(self, t: float) -> float:
         """Tilt variance the gyro adds from levelling to ``t``, while roll/pitch go out
