@@ -206,6 +206,10 @@ class EkfEngine:
         self._l_imu_ant_b = self._l_ant_b - self._l_imu_b  # antenna relative to the IMU
         self._l_imu_ant_m = float(np.linalg.norm(self._l_imu_ant_b))  # its length
         self._tuning: EkfTuning | None = None
+        self._config_tuning: EkfTuning | None = None  # the tuning as configured
+        # the gyro and accelerometer noise excess the filter's tuning has taken so far
+        self._excess_taken = (1.0, 1.0)
+        self._fix_still = True  # the last fix's speed under stationary_speed_mps (or none)
         # lost IMU samples were bridged by one held sample: the INS position and velocity then
         # carry the unknown motion of the gap (0.3 m/s in a 0.5 s gap while braking), not
         # what P says; the next fix resets them (as after an outage)
@@ -213,7 +217,6 @@ class EkfEngine:
         self._q_c = np.zeros(N_STATES)
         self._ins: Strapdown | None = None
         self._p: Array | None = None  # error covariance (19, 19); None until heading is known
-        self._unit_excess_taken = 1.0  # the noise excess the filter took (_noise_as_measured)
         self._chassis_pitch_rad = 0.0  # the chassis's pitch against its track (CHASSIS)
         # the receiver's position error (FIX states): estimate, white and wandering variance
         self._fix_err_ned_m = np.zeros(3)
@@ -287,7 +290,7 @@ class EkfEngine:
             return
         w, f = sample.w_ib_b, sample.f_ib_b
         if self._tuning is None:
-            self._tuning = EkfTuning.from_config(self.cfg, dt)
+            self._tuning = self._config_tuning = EkfTuning.from_config(self.cfg, dt)
             self._imu_dt_s = dt
             self._q_c = process_noise_psd(self._tuning)
             self._hist = InsHistory(max(2, math.ceil(self.cfg.history_s / dt)))
@@ -305,6 +308,8 @@ class EkfEngine:
             if self._hint is not None:
                 self._hint.turn(w[2], dt)
             return
+        if self._p is not None and (self._fix_still or self._still_since_s is not None):
+            self._measure_noise(t, w, f, self._fix_still)  # a stop after the start
         ins.propagate(w, f, dt)
         if self._imu.timing.lost_s:
             self._bridge()
@@ -318,6 +323,29 @@ class EkfEngine:
         if self._held:  # (no generator per sample when none waits)
             for t_e, fix in self._held.due(t):
                 self._fuse_epoch(fix, t_e)
+
+    def _measure_noise(self, t: float, w: Float3, f: Float3, still: bool) -> tuple[bool, float]:
+        """Feed the noise meter with the sample at ``t`` where the vehicle is ``still`` (GNSS)
+        and quiet (the body rate low-passed, :data:`RATE_LP_TAU_S`, under
+        ``align_quiet_rate_dps``) since :data:`ALIGN_SETTLE_S`; else the meter's rest ends.
+        Returns (quiet, s still). Before the filter runs and at every stop after: the
+        process noise takes what it shows (:meth:`_noise_as_measured`)."""
+        lp = self._align_w_lp or w
+        dt = self._imu_dt_s
+        a = dt / (RATE_LP_TAU_S + dt)
+        lp = (lp[0] + a * (w[0] - lp[0]), lp[1] + a * (w[1] - lp[1]), lp[2] + a * (w[2] - lp[2]))
+        self._align_w_lp = lp
+        quiet = math.hypot(*lp) < self.cfg.align_quiet_rate_dps * DEG_TO_RAD
+        if not still:
+            self._still_since_s = None
+        elif self._still_since_s is None:
+            self._still_since_s = t
+        still_s = 0.0 if self._still_since_s is None else t - self._still_since_s
+        if quiet and still and still_s >= ALIGN_SETTLE_S:
+            self._noise.add(w, f)
+        else:
+            self._noise.restart()
+        return quiet, still_s
 
     def _bridge(self) -> None:
         """The last sample closed a step that bridges lost samples (:class:`ImuTiming`):
@@ -374,20 +402,7 @@ class EkfEngine:
         # vibration passed the threshold sample by sample, so a parked vehicle on a rough
         # engine never had a quiet window (3x the simulator's vibration: pitch 5 deg off
         # open loop after 23 s parked, the heading then aligned 180 deg off)
-        lp = self._align_w_lp or w
-        a = dt / (RATE_LP_TAU_S + dt)
-        lp = (lp[0] + a * (w[0] - lp[0]), lp[1] + a * (w[1] - lp[1]), lp[2] + a * (w[2] - lp[2]))
-        self._align_w_lp = lp
-        quiet = math.hypot(*lp) < self.cfg.align_quiet_rate_dps * DEG_TO_RAD
-        if not still:
-            self._still_since_s = None
-        elif self._still_since_s is None:
-            self._still_since_s = t
-        still_s = 0.0 if self._still_since_s is None else t - self._still_since_s
-        if quiet and still and still_s >= ALIGN_SETTLE_S:
-            self._noise.add(w, f)
-        else:
-            self._noise.restart()
+        quiet, still_s = self._measure_noise(t, w, f, still)
         if not (quiet and still):
             if self._ins is not None or t - self._align_first_s < ALIGN_TIMEOUT_S:
                 self._win_t0_s = None
@@ -552,6 +567,7 @@ class EkfEngine:
         An epoch whose time is ahead of the last IMU sample waits until the IMU covers it.
         """
         self._last_fix = fix
+        self._fix_still = fix.sog_mps is None or fix.sog_mps < self.cfg.stationary_speed_mps
         if self._p is None:  # (before a window too: the velocity at its start)
             self._win_motion.add(fix)
         if self._ins is None or fix.quality == FixQuality.NONE:
@@ -622,6 +638,8 @@ class EkfEngine:
             if course is not None:
                 self._fold_rest_turn()
         at_rest = fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps
+        if at_rest:
+            self._noise_as_measured()
         if at_rest and not self._rest_epochs:  # (the last epoch was not at rest)
             self._forget_heading_corrections()
         if fix.heading_rad is not None:
@@ -1014,7 +1032,12 @@ class EkfEngine:
     def _noise_as_measured(self) -> EkfTuning:
         """The white rate and acceleration noise the IMU showed at rest, where it is more
         than the config's (``[ekf] vibration_*``, :mod:`gateway.estimation.imu_noise`): the
-        process noise of an installation on a rough engine. Set as the filter starts.
+        process noise of an installation on a rough engine. Set as the filter starts, and
+        raised at every epoch at rest after (the noise measured since): with a dual-antenna
+        heading the filter starts at the first epoch after levelling, before the meter has
+        its 3 s, and a unit twice as noisy ran the whole hour on its datasheet's noise, the
+        tilt 0.35-0.44 deg off with 0.08 stated (`field` seed 613 of imu-noise-x2+hdt,
+        509 frames beyond 0.1 deg + 3 sigma).
 
         Both bias walks are raised by the larger of the two ratios, as the observer's bias
         floors are: a unit noisier than its datasheet is not the datasheet's typical unit,
@@ -1023,13 +1046,14 @@ class EkfEngine:
         under ``vibration_accel_mps2``'s, so it showed no excess) while its in-run y bias
         wandered twice as far: 0.013 m/s^2 off with 0.006 stated, roll 1.3 times its sigma
         RMS (headland-reversing seed 560, imu-noise-x2)."""
-        tun = self._tuning
-        assert tun is not None
-        q_g, q_a = tun.q_gyro_rad2_per_s, tun.q_accel_m2_per_s3
-        r_g, r_a = self._noise_excess()
-        self._unit_excess_taken = max(r_g, r_a)
-        if (r_g, r_a) == (1.0, 1.0):
+        tun, base = self._tuning, self._config_tuning
+        assert tun is not None and base is not None
+        q_g, q_a = base.q_gyro_rad2_per_s, base.q_accel_m2_per_s3
+        measured = self._noise_excess(base)
+        r_g, r_a = (max(m, taken) for m, taken in zip(measured, self._excess_taken, strict=True))
+        if (r_g, r_a) == self._excess_taken:
             return tun
+        self._excess_taken = (r_g, r_a)
         log.info(
             "IMU noise at rest %.1f times (gyro) and %.1f times (accelerometer) [ekf]'s, "
             "engine vibration included: the filter's process noise raised to it",
@@ -1038,11 +1062,11 @@ class EkfEngine:
         )
         r_unit = max(r_g, r_a)
         tun = replace(
-            tun,
+            base,
             q_gyro_rad2_per_s=q_g * r_g * r_g,
             q_accel_m2_per_s3=q_a * r_a * r_a,
-            q_bias_g_rad2_per_s3=tun.q_bias_g_rad2_per_s3 * r_unit * r_unit,
-            q_bias_a_m2_per_s5=tun.q_bias_a_m2_per_s5 * r_unit * r_unit,
+            q_bias_g_rad2_per_s3=base.q_bias_g_rad2_per_s3 * r_unit * r_unit,
+            q_bias_a_m2_per_s5=base.q_bias_a_m2_per_s5 * r_unit * r_unit,
         )
         fix_q = self._q_c[FIX].copy()
         self._tuning, self._q_c = tun, process_noise_psd(tun)
@@ -1158,13 +1182,12 @@ class EkfEngine:
         much larger, as the observer takes them. A unit twice as noisy as its datasheet
         (robustness `imu-noise-x2`), a planter at 1 Hz, sent roll 3.4 deg off with 0.86
         stated before its first heading."""
-        return self._noise_excess()[0]
+        assert self._tuning is not None
+        return self._noise_excess(self._tuning)[0]
 
-    def _noise_excess(self) -> tuple[float, float]:
-        """How many times the gyro and accelerometer noise measured at rest are the
-        tuning's (:meth:`ImuNoiseMeter.excess`)."""
-        tun = self._tuning
-        assert tun is not None
+    def _noise_excess(self, tun: EkfTuning) -> tuple[float, float]:
+        """How many times the gyro and accelerometer noise measured at rest are ``tun``'s
+        (:meth:`ImuNoiseMeter.excess`)."""
         dt = self._imu_dt_s
         sigma_g = math.sqrt(tun.q_gyro_rad2_per_s / dt)
         return self._noise.excess(sigma_g, math.sqrt(tun.q_accel_m2_per_s3 / dt))
@@ -1251,7 +1274,10 @@ class EkfEngine:
         """How many times noisier than its config the unit is, the larger of gyro and
         accelerometer (>= 1): at rest before the filter runs (:class:`ImuNoiseMeter`), the
         ratio the filter took once it runs (:meth:`_noise_as_measured`)."""
-        return self._unit_excess_taken if self._p is not None else max(self._noise_excess())
+        if self._p is not None:
+            return max(self._excess_taken)
+        assert self._tuning is not None
+        return max(self._noise_excess(self._tuning))
 
     def _drift_var_rad2(self, t: float) -> float:
         """Tilt variance the gyro adds from levelling to ``t``, while roll/pitch go out
