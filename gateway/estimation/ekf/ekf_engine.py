@@ -1035,7 +1035,7 @@ class EkfEngine:
         process noise of an installation on a rough engine. Set as the filter starts, and
         raised at every epoch at rest after (the noise measured since): with a dual-antenna
         heading the filter starts at the first epoch after levelling, before the meter has
-        its 3 s, and a unit twice as noisy ran the whole hour on its datasheet's noise, the
+        its samples, and a unit twice as noisy ran the whole hour on its datasheet's noise, the
         tilt 0.35-0.44 deg off with 0.08 stated (`field` seed 613 of imu-noise-x2+hdt,
         509 frames beyond 0.1 deg + 3 sigma).
 
