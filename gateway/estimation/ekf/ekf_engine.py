@@ -393,11 +393,8 @@ class EkfEngine:
         """
         if self._align_first_s is None:
             self._align_first_s = t
-        fix = self._last_fix
-        if fix is None:  # at power-up parked; after a restart as the old engine saw it
-            still = not self._win_motion.moving_before
-        else:
-            still = fix.sog_mps is None or fix.sog_mps < self.cfg.stationary_speed_mps
+        # no fix yet: at power-up parked; after a restart as the old engine saw it
+        still = not self._win_motion.moving_before if self._last_fix is None else self._fix_still
         # the rate low-passed: one sample's gyro noise (0.5 deg/s an axis) and engine
         # vibration passed the threshold sample by sample, so a parked vehicle on a rough
         # engine never had a quiet window (3x the simulator's vibration: pitch 5 deg off
@@ -1035,7 +1032,7 @@ class EkfEngine:
         process noise of an installation on a rough engine. Set as the filter starts, and
         raised at every epoch at rest after (the noise measured since): with a dual-antenna
         heading the filter starts at the first epoch after levelling, before the meter has
-        its samples, and a unit twice as noisy ran the whole hour on its datasheet's noise, the
+        its samples, and a unit twice as noisy ran the whole run on its datasheet's noise, the
         tilt 0.35-0.44 deg off with 0.08 stated (`field` seed 613 of imu-noise-x2+hdt,
         509 frames beyond 0.1 deg + 3 sigma).
 
