@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import dataclasses
+import math
 
 import numpy as np
 import pytest
@@ -68,7 +69,8 @@ def test_auto_on_a_free_running_host_uses_the_latency_without_the_serial_jitter(
 
 def test_the_smallest_delay_is_taken_over_a_sliding_window() -> None:
     clock = EpochClock(EpochTime.RECEIVE, receiver_latency_s=0.0)
-    early = fixes(host_minus_utc_s=5.0, latency_s=0.0, jitter_s=0.0, n=1)[0]
+    first = fixes(host_minus_utc_s=5.0, latency_s=0.0, jitter_s=0.0, n=1)[0]
+    early = GnssFix(t=first.t - 0.1, t_utc=T_UTC0 - 0.1, quality=first.quality)  # the epoch before
     clock.epoch_time(early)
     later = [
         GnssFix(t=f.t + 0.02, t_utc=f.t_utc, quality=f.quality)  # the host clock stepped 20 ms
@@ -160,3 +162,24 @@ def test_the_clock_states_how_well_it_knows_an_epoch_time() -> None:
     assert synced.host_follows_utc and synced.epoch_sigma_s == 0.0
     assert free.host_follows_utc is False and free.epoch_sigma_s == RECEIVE_EPOCH_SIGMA_S
     assert undated.host_follows_utc is None and undated.epoch_sigma_s == RECEIVE_EPOCH_SIGMA_S
+
+
+def test_epochs_are_placed_in_time_order_or_not_at_all() -> None:
+    """A host 3 s behind its serial port, catching up over 15 s and reading every 0.5 s:
+    ``auto`` turns to ``receive`` on the backlog's delays and places each read's epochs at
+    one instant, and back on UTC the next epochs before them. Neither is placed; once
+    caught up the epochs are at their UTC again."""
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.05)
+    stream = fixes(host_minus_utc_s=0.0, latency_s=0.07, jitter_s=0.0, n=400)
+    late = []
+    for k, f in enumerate(stream):
+        behind_s = 0.03 * k if k < 100 else 3.0 - 0.02 * (k - 100) if k < 250 else 0.0
+        arrival = f.t + behind_s
+        if 100 <= k < 250:
+            arrival = T_UTC0 + math.ceil((arrival - T_UTC0) / 0.5) * 0.5
+        late.append(dataclasses.replace(f, t=arrival))
+    placed = [clock.epoch_time(f) for f in late]
+    times = [t for t in placed if t is not None]
+    assert np.all(np.diff(times) > 0.0)
+    assert clock.unordered == len(placed) - len(times) > 0
+    assert clock.host_follows_utc and placed[-100:] == utc_times(stream)[-100:]

@@ -35,7 +35,7 @@ from tests.kinematics import (
     state_at,
 )
 from tests.n2k_check import decode_log
-from tests.test_outages import LEVER, MOTION, run, status
+from tests.test_outages import LEVER, MOTION, attitude_within_stated, run, status
 
 M_PER_DEG = 111_195.0
 TWO_PI = 2.0 * math.pi
@@ -158,9 +158,37 @@ def test_a_wrong_fix_held_is_never_sent_as_navigating(
 def test_epochs_older_than_the_history_are_counted_and_logged(
     tmp_path: Path, caplog: pytest.LogCaptureFixture, engine: Engine
 ) -> None:
+    """The serial reader stalled for 10 s on a host that follows UTC, then read the backlog
+    at once: its epochs are placed at their UTC, and the older half of them is older than
+    the 5 s of IMU history the engines keep. They cannot be used; say so, once per 10 s."""
+    span = (70.0, 80.0)
+    fixes = [
+        dataclasses.replace(f, t=T0_S + span[1] + 0.07)
+        if span[0] <= motion_time(f.t) < span[1]
+        else f
+        for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07)
+    ]
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    with caplog.at_level(logging.WARNING):
+        core = run(tmp_path / "out.log", engine, imu, fixes, epoch_time=EpochTime.UTC)
+    assert isinstance(core.engine, (ObserverEngine, EkfEngine))
+    assert 40 <= core.engine.counters.late_epochs <= 60  # the older half of 100
+    late = [
+        r.getMessage() for r in caplog.records if "older than the IMU history" in r.getMessage()
+    ]
+    assert len(late) == 1, late  # one line per 10 s of epoch time, not one per epoch
+    t_late = float(late[0].split("epoch at t=")[1].split(" ")[0])
+    assert t_late == pytest.approx(T0_S + span[0], abs=0.1)  # the first of them
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_epochs_out_of_time_order_are_dropped_counted_and_logged(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, engine: Engine
+) -> None:
     """Sentence UTC 5 s behind for 10 s on a free-running host (``receive``: the epochs are
-    placed by their UTC and the least delay): the fixes cannot be used; say so, once per
-    10 s. (On a host that follows UTC they are placed by their arrival: epoch_clock.)"""
+    placed by their UTC and the least delay): each is placed before the last epoch placed,
+    which cannot be right; they are dropped, counted and said once per 10 s. (On a host that
+    follows UTC they are placed by their arrival: epoch_clock.)"""
     span = (70.0, 80.0)
     fixes = [
         dataclasses.replace(f, t_utc=f.t_utc - 5.0)
@@ -171,14 +199,41 @@ def test_epochs_older_than_the_history_are_counted_and_logged(
     imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
     with caplog.at_level(logging.WARNING):
         core = run(tmp_path / "out.log", engine, imu, fixes, epoch_time=EpochTime.RECEIVE)
-    assert isinstance(core.engine, (ObserverEngine, EkfEngine))
-    assert core.engine.counters.late_epochs >= 90
-    late = [
-        r.getMessage() for r in caplog.records if "older than the IMU history" in r.getMessage()
+    unordered = [
+        r.getMessage() for r in caplog.records if "expected epochs in time" in r.getMessage()
     ]
-    assert len(late) == 1, late  # one line per 10 s of epoch time, not one per epoch
-    t_late = float(late[0].split("epoch at t=")[1].split(" ")[0])
-    assert t_late == pytest.approx(T0_S + span[0] - 5.0, abs=0.1)  # the first of them
+    assert len(unordered) == 1, unordered
+    assert f"(UTC t={T0_S + span[0] - 5.0:.3f}) dropped" in unordered[0]  # the first of them
+    assert isinstance(core.engine, (ObserverEngine, EkfEngine))
+    late = core.engine.counters.late_epochs  # those placed after the last, but 5 s old
+    assert late + core.engine.clock.unordered >= 99 and core.engine.clock.unordered >= 45
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_a_busy_hosts_serial_backlog_neither_stops_nor_misleads_the_engines(
+    tmp_path: Path, engine: Engine
+) -> None:
+    """A host falling 3 s behind its serial port over 10 s, then catching up over 15 s,
+    reading every 0.5 s (``auto``): the backlog's delays turn ``auto`` to ``receive``,
+    which places each read's epochs at one instant, and back on UTC the next epochs before
+    them. Those are dropped (the observer had corrected back in time and raised, stopping
+    the service: an e2e test at 8x real time under load); the attitude sent is within its
+    stated accuracy throughout."""
+    fixes = []
+    for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07):
+        t = motion_time(f.t)
+        if 60.0 <= t < 70.0:  # falling behind ...
+            f = dataclasses.replace(f, t=f.t + 0.3 * (t - 60.0))
+        elif 70.0 <= t < 85.0:  # ... and catching up, reading every 0.5 s
+            late_t = f.t + 3.0 - 0.2 * (t - 70.0)
+            f = dataclasses.replace(f, t=T0_S + math.ceil((late_t - T0_S) / 0.5) * 0.5)
+        fixes.append(f)
+    assert np.all(np.diff([f.t for f in fixes]) >= 0.0)  # in arrival order
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    core = run(tmp_path / "out.log", engine, imu, fixes, epoch_time=EpochTime.AUTO)
+    assert isinstance(core.engine, (ObserverEngine, EkfEngine))
+    assert core.engine.clock.unordered > 0
+    assert attitude_within_stated(tmp_path / "out.log", MOTION, (20.0, MOTION.duration_s)) > 4000
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])

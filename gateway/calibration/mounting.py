@@ -121,7 +121,7 @@ class MountingEstimator:
     def gnss(self, fix: GnssFix) -> None:
         """One GNSS epoch, after the IMU samples up to its receipt."""
         t_s = self.clock.epoch_time(fix)
-        window = self.work.add(t_s, fix, self.intervals.cut(t_s))
+        window = None if t_s is None else self.work.add(t_s, fix, self.intervals.cut(t_s))
         if window is not None:
             self.forward.add(window)
         self.engine.gnss(fix)

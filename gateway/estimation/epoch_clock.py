@@ -16,14 +16,22 @@ tilts the GNSS specific force against the platform's.
 
 Before the date is known (no RMC/ZDA yet) a fix has no ``t_utc``; its epoch is then ``t``
 minus the configured latency in every mode.
+
+In every mode an epoch is placed after the last one placed, or not at all: two epochs at one
+instant, or one before the epoch before it, cannot both be right, and an engine would
+correct back in time with it (:meth:`EpochClock.epoch_time`).
 """
 
 from __future__ import annotations
 
+import logging
 from collections import deque
 from enum import Enum
 
+from drivers.log_limit import LogLimiter
 from drivers.samples import GnssFix
+
+log = logging.getLogger(__name__)
 
 #: Receive delays (s) of a receiver on a host clock that follows UTC: an epoch cannot arrive
 #: before it happened (a few ms of NTP error aside), and the output latency plus the serial
@@ -57,7 +65,9 @@ class EpochClock:
         self.mode = mode
         self.receiver_latency_s = receiver_latency_s
         self._delays: deque[float] = deque(maxlen=DELAY_WINDOW)
-        self._last_epoch_s: float | None = None  # the latest epoch placed on a UTC host
+        self._last_epoch_s: float | None = None  # the latest epoch placed
+        self.unordered = 0  # epochs not placed: not after the last one placed
+        self._log = LogLimiter(log)
 
     @property
     def host_follows_utc(self) -> bool | None:
@@ -83,8 +93,26 @@ class EpochClock:
             return self.mode is EpochTime.UTC
         return least_possible_s is not None and least_possible_s <= SYNCED_DELAY_S[1]
 
-    def epoch_time(self, fix: GnssFix) -> float:
-        """Epoch instant of ``fix`` on the host clock, s.
+    def epoch_time(self, fix: GnssFix) -> float | None:
+        """Epoch instant of ``fix`` on the host clock, s; None if it would not be after the
+        last epoch placed: the epoch is dropped, counted (:attr:`unordered`) and logged.
+
+        Why: a host 10 s behind its serial port (a test at 8x real time on a loaded machine)
+        turned ``auto`` to ``receive`` on the backlog's delays, which placed a burst of 11
+        epochs at one instant, and back on UTC the next epoch 0.43 s before them: the
+        observer corrected back in time, its open-loop span came out negative and raised,
+        and the service stopped."""
+        t_e = self._place(fix)
+        last = self._last_epoch_s
+        if last is not None and t_e <= last:
+            self.unordered += 1
+            self._log.warning(fix.t, unordered_epoch_text(fix, t_e, last), "unordered")
+            return None
+        self._last_epoch_s = t_e
+        return t_e
+
+    def _place(self, fix: GnssFix) -> float:
+        """Epoch instant of ``fix`` by the mode and the delays (:meth:`epoch_time`).
 
         On a host that follows UTC, an epoch whose UTC cannot be right is placed by its
         arrival, less the least possible delay: its data are right, its time stamp is not.
@@ -104,13 +132,22 @@ class EpochClock:
         if not self._follows_utc(least_possible_s):
             return fix.t_utc + min(self._delays) - self.receiver_latency_s
         last = self._last_epoch_s
-        t_e = fix.t_utc
         if least_possible_s is not None and (
             delay_s < SYNCED_DELAY_S[0] or (last is not None and fix.t_utc <= last)
         ):
-            t_e = fix.t - least_possible_s
-        self._last_epoch_s = t_e if last is None else max(last, t_e)
-        return t_e
+            return fix.t - least_possible_s
+        return fix.t_utc
+
+
+def unordered_epoch_text(fix: GnssFix, t_e: float, last_s: float) -> str:
+    """The warning for an epoch not placed: ``t_e`` not after the last one placed."""
+    utc = "no UTC" if fix.t_utc is None else f"UTC t={fix.t_utc:.3f}"
+    return (
+        f"GNSS epoch received at t={fix.t:.3f} ({utc}) dropped: its time t={t_e:.3f} is "
+        f"{last_s - t_e:.3f} s before or at the last epoch's (t={last_s:.3f}); expected "
+        "epochs in time order (the receiver's clock, a backlog of sentences on a busy host, "
+        "or [gnss] epoch_time?)"
+    )
 
 
 def late_epoch_text(t_e: float, oldest_s: float) -> str:

@@ -196,7 +196,7 @@ class EkfEngine:
         self._rest_turn = (0.0, 0.0)
         self._pending_turn_rad = 0.0  # turned in the rest spans not checked yet
         self._t_course_s: float | None = None  # the last epoch with a course
-        self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self.clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._last_vel: tuple[float, tuple[float, float]] | None = None
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_ant_m = float(np.linalg.norm(self._l_ant_b))
@@ -569,8 +569,8 @@ class EkfEngine:
             self._win_motion.add(fix)
         if self._ins is None or fix.quality == FixQuality.NONE:
             return
-        t_e = self._clock.epoch_time(fix)
-        if not self._held.hold(t_e, fix, self._t_s):
+        t_e = self.clock.epoch_time(fix)
+        if t_e is not None and not self._held.hold(t_e, fix, self._t_s):
             self._fuse_epoch(fix, t_e)
 
     def _fuse_epoch(self, fix: GnssFix, t_e: float) -> None:
@@ -1435,7 +1435,7 @@ class EkfEngine:
         if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or sig is None:
             return None
         sig_ned = np.maximum(np.array(sig), 1e-3)
-        vel, sigma_t = fix.vel_ne_mps, self._clock.epoch_sigma_s
+        vel, sigma_t = fix.vel_ne_mps, self.clock.epoch_sigma_s
         if sigma_t and vel is not None:
             # the position of an instant within sigma_t of the epoch: v sigma_t (the
             # diagonal of sigma_t^2 v v')
@@ -1456,7 +1456,7 @@ class EkfEngine:
             self._last_vel = None
             return np.zeros(2), math.hypot(sigma, fix.sog_mps)
         last, self._last_vel = self._last_vel, (fix.t, vel)
-        sigma_t = self._clock.epoch_sigma_s
+        sigma_t = self.clock.epoch_sigma_s
         if sigma_t and last is not None and fix.t > last[0]:
             # the velocity of an instant within sigma_t of the epoch: a sigma_t
             accel = math.dist(vel, last[1]) / (fix.t - last[0])

@@ -196,7 +196,7 @@ class ObserverEngine:
         self._l_ant_f = tuple(float(x) for x in cfg.antenna_lever_arm_m)
         self._heading = HeadingChannel(cfg)
         self._hdt_screen = HdtScreen(cfg)  # HDT's jumps against the gyro's turn
-        self._clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self.clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
         self._observer: TereshkovObserver | None = None
         # tilt alignment
         self._align_sum = [0.0] * 6  # sums of w_b and f_b over the window
@@ -685,8 +685,8 @@ class ObserverEngine:
             self._align_motion.add(fix)
         if self._observer is None or fix.quality == FixQuality.NONE:
             return
-        t_e = self._clock.epoch_time(fix)
-        if not self._held.hold(t_e, fix, self._t_s):
+        t_e = self.clock.epoch_time(fix)
+        if t_e is not None and not self._held.hold(t_e, fix, self._t_s):
             self._correct(fix, t_e)
 
     def _correct(self, fix: GnssFix, t_e: float) -> None:
