@@ -10,6 +10,10 @@ The modules that are live as a whole say so themselves (``pytestmark``): test_se
 test_demo.py and tests/vcan/. Single live tests in other modules are listed in
 :data:`LIVE_TESTS`.
 
+A test in which an engine raised fails (:func:`no_engine_fault`): the core keeps the
+gateway going past it (``FusionCore._engine_raised``), which must not keep a bug from the
+tests.
+
 ``NAVGW_TEST_CPU_LOAD=N`` runs N CPU hogs (:mod:`tests.cpu_load`: stress-ng, or Python busy
 loops where it is absent) from the start of the session to its end, failures and Ctrl-C
 included; the header of the run says which.
@@ -18,6 +22,8 @@ included; the header of the run says which.
 from __future__ import annotations
 
 import atexit
+import logging
+from collections.abc import Iterator
 
 import pytest
 
@@ -40,6 +46,19 @@ LIVE_TESTS = frozenset(
 )
 
 _load: CpuLoad | None = None
+
+
+@pytest.fixture(autouse=True)
+def no_engine_fault(caplog: pytest.LogCaptureFixture) -> Iterator[None]:
+    """Fails the test if the fusion core caught an engine that raised in it (a test that
+    injects one clears ``caplog`` once it has looked)."""
+    yield
+    raised = [
+        r.getMessage()
+        for r in caplog.get_records("call")
+        if r.name == "gateway.fusion.fusion_core" and r.levelno >= logging.ERROR
+    ]
+    assert not raised, raised
 
 
 @pytest.hookimpl(tryfirst=True)  # before -m selects on the marker

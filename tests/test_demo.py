@@ -36,6 +36,7 @@ def test_short_demo_writes_its_files_and_sane_numbers(tmp_path: Path) -> None:
         cwd=REPO, capture_output=True, text=True, check=False, timeout=120,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
+    assert "the engine raised" not in result.stderr, result.stderr
     text = result.stdout
     for name in ("navgw-output.log", "navgw-demo.log", "sim/truth.npz"):
         assert (out / name).stat().st_size > 0, name

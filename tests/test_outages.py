@@ -10,6 +10,7 @@ from __future__ import annotations
 import bisect
 import dataclasses
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -59,15 +60,19 @@ def run(
     fixes: list[GnssFix],
     epoch_time: EpochTime = EpochTime.UTC,
     observer: ObserverConfig | None = None,
+    prepare: Callable[[FusionCore], None] | None = None,
 ) -> FusionCore:
     """Both streams through the core in time order; frames to ``path`` (``observer``: the
-    [observer] table, else the default)."""
+    [observer] table, else the default; ``prepare`` is given the core before the first
+    input)."""
     config = GatewayConfig(
         vehicle=VehicleSection(antenna_lever_arm_m=LEVER),
         gnss=GnssSection(epoch_time=epoch_time),
         observer=observer or ObserverConfig(),
     ).with_engine(engine)
     core = FusionCore.from_config(config)
+    if prepare is not None:
+        prepare(core)
     with CandumpWriter(path, "can0") as writer:
         writer.write_all(core.start(T0_S))
         j = 0

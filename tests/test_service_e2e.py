@@ -254,6 +254,7 @@ def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Pa
         cwd=REPO, capture_output=True, text=True, check=False,
     )  # fmt: skip
     assert result.returncode == 0, result.stderr
+    assert "the engine raised" not in result.stderr, result.stderr
     replayed = decode_log(rec_out)
     bad = implausible_frames(replayed, truth, status=status_modes(rec_out))
     assert not bad, f"{len(bad)} implausible frames in the replay:\n" + "\n".join(bad[:20])

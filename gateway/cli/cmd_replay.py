@@ -71,7 +71,8 @@ def summary_text(s: ReplaySummary) -> str:
             f"  GNSS: {s.stats.gnss_fixes} fixes, {gnss.checksum_errors} checksum errors, "
             f"{gnss.parse_errors} parse errors, {gnss.skipped_bytes} junk bytes, "
             f"{s.bad_nmea_lines} bad log lines",
-            f"  out:  {s.stats.frames_out} frames",
+            f"  out:  {s.stats.frames_out} frames"
+            + (f", {n} engine faults (raised: see above)" if (n := s.stats.engine_faults) else ""),
         ]
     )
 

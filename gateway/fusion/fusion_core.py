@@ -28,7 +28,9 @@ the engine restarts (the rotation meanwhile is unknown: 2 s of full-scale gyro l
 attitude 179 deg off, then above 1 deg for 35 s, while STATUS said navigating; a 10 s freeze
 left roll 4 deg off).
 A restarted engine starts from what the one it replaces had learned of the IMU's biases
-(:meth:`LearningEstimator.learned_state`, with its sigmas): the IMU is the same.
+(:meth:`LearningEstimator.learned_state`, with its sigmas): the IMU is the same. An engine
+that raises (a bug some input reached) is replaced too, from cold, and NAVGW_STATUS says
+FAULT until the new one has aligned: the gateway goes on (:meth:`FusionCore._engine_raised`).
 
 Warm start: the shell may give a ``warm_start`` callback (:mod:`gateway.state`), which the
 core asks once, with the IMU's temperature and the time of the first IMU_AUX (1 Hz), for
@@ -123,6 +125,7 @@ class FusionStats:
     frames_out: int = 0
     imu_dropped: int = 0  # samples the live loop dropped before the engine (overload, stale)
     engine_restarts: int = 0  # after a gap of RESTART_GAP_S in the IMU stream, or unusable samples
+    engine_faults: int = 0  # the engine raised: logged, FAULT, a new engine from cold
     imu_saturated: int = 0  # samples withheld from the engine: an axis at its range's end
     imu_stuck: int = 0  # samples withheld from the engine: an axis's word stuck
     imu_timing_unknown: int = 0  # ... and samples whose time the driver does not know yet
@@ -170,6 +173,8 @@ class FusionCore:
         self._told_mode: Mode | None = None  # mode of the last NAVGW_STATUS sent
         self._loop = LoopStatus()  # the last loop status made (:meth:`loop_status`)
         self._last_unusable_log = -math.inf
+        self._last_fault_log = -math.inf
+        self._faulted = False  # the engine raised: FAULT until the new one has aligned
         self._warm_start = warm_start  # asked once, at the first IMU_AUX
         self._t_first_imu: float | None = None
         self.imu_temp_c: float | None = None  # the last IMU_AUX's temperature
@@ -247,7 +252,10 @@ class FusionCore:
             return self.on_bus_frame(item.msg, item.t)
         if isinstance(item, GnssFix):
             self.stats.gnss_fixes += 1
-            self.engine.gnss(item)
+            try:
+                self.engine.gnss(item)
+            except Exception as err:  # a bug must not stop the gateway: _engine_raised
+                return self._counted(self._engine_raised(item.t, "a GNSS fix", err))
             if self.mounting is not None or self.lever_arm is not None:
                 self._fix_to_check = item
             if self.rest is not None:
@@ -315,7 +323,10 @@ class FusionCore:
         if gap or self._unusable:
             self._restart_engine(last if gap else None, t)
         self._last_sample = sample
-        self.engine.imu(sample)
+        try:
+            self.engine.imu(sample)
+        except Exception as err:  # a bug must not stop the gateway: _engine_raised
+            return self._counted(self._engine_raised(t, "an IMU sample", err))
         if self.lever_arm is not None:
             self.lever_arm.imu(t, sample.w_ib_b)
         rest = self.rest
@@ -330,9 +341,15 @@ class FusionCore:
         )
         if not (t >= self.scheduler.next_due_t and claimer.claimed):
             return self._counted(polled) if polled else NOTHING
-        sol = self.engine.solution()
+        try:
+            sol = self.engine.solution()
+        except Exception as err:  # a bug must not stop the gateway: _engine_raised
+            fault = self._engine_raised(t, "its solution", err)
+            return self._counted(chain(polled, fault) if polled else fault)
         if self._fix_to_check is not None:
             self._check_geometry(sol)
+        if self._faulted:
+            sol = self._fault_held(sol)
         sent = self._attributable(self.guard.check(sol), t)
         frames = self.scheduler.frames(sent, self.loop_status(t), now=self._told(sent.mode))
         return self._counted(chain(polled, frames) if polled else frames)
@@ -407,6 +424,41 @@ class FusionCore:
                 "IMU samples resumed %.3f s after the last one at t=%.3f: the engine "
                 "restarts (re-aligned before anything is sent)", t - last.t, last.t,
             )  # fmt: skip
+
+    def _engine_raised(self, t: float, what: str, err: Exception) -> Iterable[can.Message]:
+        """The engine raised on ``what`` at ``t``: a bug that some input reached. It must
+        not stop the gateway: the bus would go silent until systemd restarted the service,
+        and the input that reached it may come again (an overloaded host's epochs out of
+        time order had the observer raise, stopping the service, before the epoch clock was
+        made to drop them). Logged with its traceback (at most once per 10 s), counted, and
+        replaced by a new engine from cold (what the failed one learned is not trusted),
+        which aligns again; NAVGW_STATUS says FAULT until it has (:meth:`_fault_held`: its
+        INITIALISING and ALIGNING would look like a normal start). Without a factory there
+        is no engine to go on with: ``err`` is raised."""
+        if self._make_engine is None:
+            raise err
+        self.stats.engine_faults += 1
+        if t - self._last_fault_log >= 10.0:
+            log.error(
+                "the engine raised on %s at t=%.3f (%s: %s): a new engine from cold, FAULT "
+                "until it has aligned (%d in all)", what, t,
+                type(err).__name__, err, self.stats.engine_faults, exc_info=err,
+            )  # fmt: skip
+            self._last_fault_log = t
+        self.engine = self._make_engine()
+        self.engine.moving_before()
+        self.guard.forget_track()
+        self._fix_to_check = None
+        self._faulted = True
+        return self._fault(t)
+
+    def _fault_held(self, sol: Solution) -> Solution:
+        """``sol`` of the engine that replaced one that raised: FAULT while it initialises
+        and aligns, then as it is."""
+        if sol.mode in (Mode.INITIALISING, Mode.ALIGNING):
+            return replace(sol, mode=Mode.FAULT)
+        self._faulted = False
+        return sol
 
     def _wait_for_temperature(self, t: float) -> None:
         """No IMU_AUX within WARM_START_WAIT_S of the first IMU sample: stay cold."""
