@@ -82,6 +82,7 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
     out_log = tmp_path / "live.log"
     written: dict[str, float] = {}  # UTC field of a GGA/RMC -> wall time its line was written
     read_delays: list[float] = []  # wall seconds from the write of an epoch to its read
+    read_at: list[float] = []  # ... and the wall time of its read, s from the start
 
     async def main() -> GatewayService:
         with (
@@ -122,6 +123,7 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
                     )
                     if utc in written:
                         read_delays.append(timebase.wall_at(item.t) - written[utc])
+                        read_at.append(timebase.wall_at(item.t) - timebase.origin_wall)
                 return core_input(item)
 
             service.core.engine.imu = slow_imu  # type: ignore[method-assign]
@@ -143,7 +145,15 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
     # its own lateness (the GIL) is not counted.
     assert service.core.stats.gnss_fixes == service.gnss.decoder.counters.fixes > 0.9 * 10 * SECONDS
     assert len(read_delays) > 0.9 * 10 * SECONDS
-    assert np.percentile(read_delays, 95) < 0.25, np.percentile(read_delays, [50, 95, 100])
+    # (a failure says when the worst reads were, and what the service counted then: two
+    # runs in 15 under two stress-ng hogs had the whole service stall for seconds here,
+    # its IMU too, not reproduced by this test alone in 18; docs/ROBUSTNESS.md "Open")
+    worst = np.argsort(read_delays)[-5:]
+    assert np.percentile(read_delays, 95) < 0.25, (
+        np.percentile(read_delays, [50, 95, 100]),
+        [(round(read_at[k], 2), round(read_delays[k], 2)) for k in worst],
+        service.status_line(),
+    )
     # nothing implausible went out while the core ran behind
     decoded = decode_log(out_log)
     assert [m for m in decoded if m.id == "attitude"], "no attitude frame at all"
