@@ -35,7 +35,7 @@ from gateway.config.gateway_config import (
     config_toml,
 )
 from gateway.estimation.attitude import dcm_from_rpy_deg
-from gateway.estimation.epoch_clock import DELAY_WINDOW
+from gateway.estimation.epoch_clock import DELAY_WINDOW_S
 from sim_bus.adis16334 import Adis16334Config, Adis16334Output, simulate
 from sim_bus.gnss_receiver import (
     FixInterval,
@@ -404,6 +404,8 @@ def receiver_latency_s(gnss_log: Path, receiver: GnssReceiverConfig) -> float:
     least delay from an epoch to the receipt of its last sentence over the epoch clock's window
     at the start, less the host clock's offset from UTC; to the millisecond."""
     with read_nmea_log(gnss_log) as reader:
-        fixes = itertools.islice(read_fixes_from_log(reader), DELAY_WINDOW)
-        delays = [fix.t - fix.t_utc for fix in fixes if fix.t_utc is not None]
+        fixes = read_fixes_from_log(reader)
+        first = next(fixes)
+        window = itertools.takewhile(lambda f: f.t <= first.t + DELAY_WINDOW_S, fixes)
+        delays = [fix.t - fix.t_utc for fix in (first, *window) if fix.t_utc is not None]
     return round(min(delays) - receiver.host_clock_offset_s, 3)

@@ -10,13 +10,14 @@ import pytest
 
 from drivers.samples import FixQuality, GnssFix
 from gateway.estimation.epoch_clock import (
-    DELAY_WINDOW,
+    DELAY_WINDOW_S,
     RECEIVE_EPOCH_SIGMA_S,
     EpochClock,
     EpochTime,
 )
 
 T_UTC0 = 1_700_000_000.0
+WINDOW_EPOCHS = round(DELAY_WINDOW_S / 0.1)  # 10 Hz epochs over the delay window
 
 
 def fixes(host_minus_utc_s: float, latency_s: float, jitter_s: float, n: int = 50) -> list[GnssFix]:
@@ -74,7 +75,7 @@ def test_the_smallest_delay_is_taken_over_a_sliding_window() -> None:
     clock.epoch_time(early)
     later = [
         GnssFix(t=f.t + 0.02, t_utc=f.t_utc, quality=f.quality)  # the host clock stepped 20 ms
-        for f in fixes(host_minus_utc_s=5.0, latency_s=0.0, jitter_s=0.0, n=DELAY_WINDOW + 1)
+        for f in fixes(host_minus_utc_s=5.0, latency_s=0.0, jitter_s=0.0, n=WINDOW_EPOCHS + 2)
     ]
     t_e = epochs(clock, later)
     assert t_e[0] == pytest.approx(later[0].t - 0.02)  # the old minimum still counts
@@ -164,21 +165,54 @@ def test_the_clock_states_how_well_it_knows_an_epoch_time() -> None:
     assert undated.host_follows_utc is None and undated.epoch_sigma_s == RECEIVE_EPOCH_SIGMA_S
 
 
-def test_epochs_are_placed_in_time_order_or_not_at_all() -> None:
-    """A host 3 s behind its serial port, catching up over 15 s and reading every 0.5 s:
-    ``auto`` turns to ``receive`` on the backlog's delays and places each read's epochs at
-    one instant, and back on UTC the next epochs before them. Neither is placed; once
-    caught up the epochs are at their UTC again."""
-    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.05)
-    stream = fixes(host_minus_utc_s=0.0, latency_s=0.07, jitter_s=0.0, n=400)
+def behind(stream: list[GnssFix], lag_s: list[float], read_every_s: float) -> list[GnssFix]:
+    """``stream`` read ``lag_s[k]`` late, by a reader that reads every ``read_every_s`` while
+    it is behind (0 s: at once)."""
     late = []
-    for k, f in enumerate(stream):
-        behind_s = 0.03 * k if k < 100 else 3.0 - 0.02 * (k - 100) if k < 250 else 0.0
-        arrival = f.t + behind_s
-        if 100 <= k < 250:
-            arrival = T_UTC0 + math.ceil((arrival - T_UTC0) / 0.5) * 0.5
+    for f, lag in zip(stream, lag_s, strict=True):
+        arrival = f.t + lag
+        if lag > 0.0 and read_every_s > 0.0:
+            arrival = T_UTC0 + math.ceil((arrival - T_UTC0) / read_every_s) * read_every_s
         late.append(dataclasses.replace(f, t=arrival))
-    placed = [clock.epoch_time(f) for f in late]
+    return late
+
+
+def test_a_reader_stalled_for_seconds_leaves_the_epochs_at_their_utc() -> None:
+    """A busy host's reader stalled for 20 s, then 10 s, then 7 s, each backlog read in one
+    burst (a recording of the in-process test at 8x real time on a loaded machine: 2.5 s of
+    wall time at most). Over a 10 s window the backlog's delays turned ``auto`` to
+    ``receive``, every epoch placed 10-20 s late: the observer aligned on them, 25 m off,
+    COASTING without DEGRADED. A reader held up only adds to the delays: the epochs stay at
+    their UTC, in order, none dropped."""
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.05)
+    stream = fixes(host_minus_utc_s=0.0, latency_s=0.05, jitter_s=0.005, n=800)
+    stalls = [(300, 500), (510, 610), (660, 730)]  # epochs [a, b) read at b's time
+    lag_s = [0.0] * len(stream)
+    for a, b in stalls:
+        for k in range(a, b):
+            lag_s[k] = stream[b].t - stream[k].t
+    placed = epochs(clock, behind(stream, lag_s, read_every_s=0.0))
+    assert clock.unordered == 0 and clock.host_follows_utc
+    assert np.array_equal(placed, utc_times(stream))
+
+
+def test_epochs_are_placed_in_time_order_or_not_at_all() -> None:
+    """A host 3 s behind its serial port for longer than the delay window, then catching up
+    over 15 s, reading every 0.5 s: ``auto`` turns to ``receive`` on the backlog's delays
+    (a clock 3 s ahead looks the same) and places epochs on them, and back on UTC the next
+    epochs before them. Those are not placed; once caught up the epochs are at their UTC
+    again."""
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.05)
+    held = WINDOW_EPOCHS + 100
+    n = 100 + held + 150 + 100
+    stream = fixes(host_minus_utc_s=0.0, latency_s=0.07, jitter_s=0.0, n=n)
+    lag_s = [
+        0.03 * k if k < 100
+        else 3.0 if k < 100 + held
+        else max(0.0, 3.0 - 0.02 * (k - 100 - held))
+        for k in range(n)
+    ]  # fmt: skip
+    placed = [clock.epoch_time(f) for f in behind(stream, lag_s, read_every_s=0.5)]
     times = [t for t in placed if t is not None]
     assert np.all(np.diff(times) > 0.0)
     assert clock.unordered == len(placed) - len(times) > 0

@@ -18,7 +18,7 @@ import pytest
 from drivers.samples import GnssFix
 from gateway.config.gateway_config import Engine
 from gateway.estimation.ekf.ekf_engine import EkfEngine
-from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.epoch_clock import DELAY_WINDOW_S, EpochTime
 from gateway.estimation.geodesy import lla_to_ned
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
@@ -210,29 +210,36 @@ def test_epochs_out_of_time_order_are_dropped_counted_and_logged(
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+@pytest.mark.parametrize("behind_s", [0.0, 65.0])
 def test_a_busy_hosts_serial_backlog_neither_stops_nor_misleads_the_engines(
-    tmp_path: Path, engine: Engine
+    tmp_path: Path, engine: Engine, behind_s: float
 ) -> None:
-    """A host falling 3 s behind its serial port over 10 s, then catching up over 15 s,
-    reading every 0.5 s (``auto``): the backlog's delays turn ``auto`` to ``receive``,
-    which places each read's epochs at one instant, and back on UTC the next epochs before
-    them. Those are dropped (the observer had corrected back in time and raised, stopping
-    the service: an e2e test at 8x real time under load); the attitude sent is within its
-    stated accuracy throughout."""
+    """A host falling 3 s behind its serial port over 10 s, staying behind ``behind_s``,
+    then catching up over 15 s, reading every 0.5 s (``auto``). Held up for less than the
+    epoch clock's delay window, the epochs stay at their UTC. Held up for longer, the
+    backlog's delays look like a clock 3 s ahead: ``auto`` turns to ``receive``, and back on
+    UTC the next epochs would be before the last placed. Those are dropped (the observer
+    had corrected back in time and raised, stopping the service: an e2e test at 8x real
+    time under load). The attitude sent is within its stated accuracy throughout."""
+    start = 20.0
     fixes = []
     for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07):
-        t = motion_time(f.t)
-        if 60.0 <= t < 70.0:  # falling behind ...
-            f = dataclasses.replace(f, t=f.t + 0.3 * (t - 60.0))
-        elif 70.0 <= t < 85.0:  # ... and catching up, reading every 0.5 s
-            late_t = f.t + 3.0 - 0.2 * (t - 70.0)
-            f = dataclasses.replace(f, t=T0_S + math.ceil((late_t - T0_S) / 0.5) * 0.5)
-        fixes.append(f)
+        t = motion_time(f.t) - start
+        lag_s = 0.3 * t if 0.0 <= t < 10.0 else 0.0  # falling behind ...
+        if 10.0 <= t < 10.0 + behind_s:  # ... staying behind ...
+            lag_s = 3.0
+        elif 10.0 + behind_s <= t < 25.0 + behind_s:  # ... catching up
+            lag_s = 3.0 - 0.2 * (t - 10.0 - behind_s)
+        late_t = f.t + lag_s
+        if t >= 10.0 and lag_s > 0.0:  # reading every 0.5 s
+            late_t = T0_S + math.ceil((late_t - T0_S) / 0.5) * 0.5
+        fixes.append(dataclasses.replace(f, t=late_t))
     assert np.all(np.diff([f.t for f in fixes]) >= 0.0)  # in arrival order
     imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
     core = run(tmp_path / "out.log", engine, imu, fixes, epoch_time=EpochTime.AUTO)
     assert isinstance(core.engine, (ObserverEngine, EkfEngine))
-    assert core.engine.clock.unordered > 0
+    clock = core.engine.clock
+    assert (clock.unordered > 0) == (behind_s > DELAY_WINDOW_S) and clock.host_follows_utc
     assert attitude_within_stated(tmp_path / "out.log", MOTION, (20.0, MOTION.duration_s)) > 4000
 
 

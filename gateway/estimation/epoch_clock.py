@@ -14,6 +14,10 @@ tilts the GNSS specific force against the platform's.
   synchronised host can have (``SYNCED_DELAY_S``), else ``receive``. Logs stamped on a UTC
   host clock (SPEC 3) so line up exactly whatever the receiver's latency.
 
+"Recent" is the last :data:`DELAY_WINDOW_S` of receive time: a reader held up only adds to
+the delays, and the smallest delay over a minute is the clock's, not the host's load (a
+busy host whose reader stalls for seconds stays on UTC).
+
 Before the date is known (no RMC/ZDA yet) a fix has no ``t_utc``; its epoch is then ``t``
 minus the configured latency in every mode.
 
@@ -45,9 +49,14 @@ SYNCED_DELAY_S = (-0.02, 0.5)
 #: 0.08 stated (robustness `host-clock-free`, field seed 543: 311 frames beyond).
 RECEIVE_EPOCH_SIGMA_S = 0.03
 
-#: Epochs whose receive delays are kept: the smallest of them is the one least delayed by
-#: serial scheduling and host load (10 s at 10 Hz; clock drift moves it by < 1 ms in that time).
-DELAY_WINDOW = 100
+#: Receive time (s) over which the smallest receive delay is taken: the epoch least delayed
+#: by serial scheduling and host load. Long enough that a reader held up for seconds cannot
+#: fill it with late epochs: over 10 s (100 epochs at 10 Hz), a test at 8x real time whose
+#: reader stalled for 2.5 s of wall time (20 s of log time) turned ``auto`` to ``receive``
+#: on the backlog's delays and placed every epoch 10-20 s late: the observer aligned on them,
+#: 25 m off, COASTING without DEGRADED. Short enough that a free-running clock's drift
+#: (50 ppm: 3 ms a minute) stays well inside :data:`RECEIVE_EPOCH_SIGMA_S`.
+DELAY_WINDOW_S = 60.0
 
 
 class EpochTime(Enum):
@@ -64,7 +73,8 @@ class EpochClock:
     def __init__(self, mode: EpochTime, receiver_latency_s: float) -> None:
         self.mode = mode
         self.receiver_latency_s = receiver_latency_s
-        self._delays: deque[float] = deque(maxlen=DELAY_WINDOW)
+        self._least = SlidingMin(DELAY_WINDOW_S)  # every receive delay
+        self._least_possible = SlidingMin(DELAY_WINDOW_S)  # those a synced host can have
         self._last_epoch_s: float | None = None  # the latest epoch placed
         self.unordered = 0  # epochs not placed: not after the last one placed
         self._log = LogLimiter(log)
@@ -72,21 +82,15 @@ class EpochClock:
     @property
     def host_follows_utc(self) -> bool | None:
         """Whether the host clock follows UTC, as the mode and the delays say (None: no date)."""
-        return self._follows_utc(self._least_possible_delay()) if self._delays else None
+        if self._least.value is None:
+            return None
+        return self._follows_utc(self._least_possible.value)
 
     @property
     def epoch_sigma_s(self) -> float:
         """1-sigma of the epoch times placed, s: 0 on a host that follows UTC (the receiver's
         UTC is exact), :data:`RECEIVE_EPOCH_SIGMA_S` on a free-running one or before the date."""
         return 0.0 if self.host_follows_utc else RECEIVE_EPOCH_SIGMA_S
-
-    def _least_possible_delay(self) -> float | None:
-        """The least recent delay an epoch can have on a synchronised host: delays before
-        the epoch (below ``SYNCED_DELAY_S``) are left out. An epoch cannot arrive before it
-        happened there, so they are the receiver's UTC jumping ahead for a while (a firmware
-        glitch, a leap second), or a host clock behind UTC, whose every delay is one."""
-        possible = [d for d in self._delays if d >= SYNCED_DELAY_S[0]]
-        return min(possible) if possible else None
 
     def _follows_utc(self, least_possible_s: float | None) -> bool:
         if self.mode is not EpochTime.AUTO:
@@ -127,16 +131,51 @@ class EpochClock:
         if fix.t_utc is None:
             return fix.t - self.receiver_latency_s
         delay_s = fix.t - fix.t_utc
-        self._delays.append(delay_s)
-        least_possible_s = self._least_possible_delay()
+        least_s = self._least.add(fix.t, delay_s)
+        # The least possible delay leaves out delays before the epoch (below SYNCED_DELAY_S):
+        # an epoch cannot arrive before it happened on a synchronised host, so they are the
+        # receiver's UTC jumping ahead for a while (a firmware glitch, a leap second), or a
+        # host clock behind UTC, whose every delay is one.
+        if delay_s >= SYNCED_DELAY_S[0]:
+            self._least_possible.add(fix.t, delay_s)
+        else:
+            self._least_possible.expire(fix.t)
+        least_possible_s = self._least_possible.value
         if not self._follows_utc(least_possible_s):
-            return fix.t_utc + min(self._delays) - self.receiver_latency_s
+            return fix.t_utc + least_s - self.receiver_latency_s
         last = self._last_epoch_s
         if least_possible_s is not None and (
             delay_s < SYNCED_DELAY_S[0] or (last is not None and fix.t_utc <= last)
         ):
             return fix.t - least_possible_s
         return fix.t_utc
+
+
+class SlidingMin:
+    """The least value added within the last ``window_s`` (of the times given with them),
+    in O(1) per value: a queue of the values that can still become the least."""
+
+    def __init__(self, window_s: float) -> None:
+        self.window_s = window_s
+        self._candidates: deque[tuple[float, float]] = deque()  # (time, value), values rising
+
+    @property
+    def value(self) -> float | None:
+        """The least value in the window; None if there is none."""
+        return self._candidates[0][1] if self._candidates else None
+
+    def add(self, t: float, value: float) -> float:
+        """Add ``value`` at time ``t`` (times in arrival order); the least in the window."""
+        while self._candidates and self._candidates[-1][1] >= value:
+            self._candidates.pop()
+        self._candidates.append((t, value))
+        self.expire(t)
+        return self._candidates[0][1]
+
+    def expire(self, now: float) -> None:
+        """Forget the values added before ``now - window_s``."""
+        while self._candidates and self._candidates[0][0] < now - self.window_s:
+            self._candidates.popleft()
 
 
 def unordered_epoch_text(fix: GnssFix, t_e: float, last_s: float) -> str:
