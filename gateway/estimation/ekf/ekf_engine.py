@@ -142,6 +142,12 @@ ALIGN_TIMEOUT_S = 10.0
 #: stop on levelled 0.45 deg off, stated 0.03).
 ALIGN_SETTLE_S = 1.0
 ALIGN_MARK_S = 0.05  # the window's running sums kept this often, s, for that
+#: A fix that says the vehicle stands vouches for rest this long after its receipt, s: the
+#: next epoch of a 1 Hz receiver, with its jitter. Without a fix since, the vehicle may have
+#: driven off: GNSS silent while parked (a stalled reader, a receiver's reset), the engine
+#: re-levelled on quiet windows of the drive and took their acceleration for tilt: roll
+#: 3 deg off with 0.6 stated, ALIGNING.
+FIX_STILL_HOLD_S = 1.5
 #: Earth rate, rad/s: part of the gyro mean at rest (mechanisation drops it, see
 #: gateway.estimation.ekf.error_state).
 EARTH_RATE_RPS = 7.292115e-5
@@ -309,7 +315,7 @@ class EkfEngine:
                 self._hint.turn(w[2], dt)
             return
         if self._p is not None and (self._fix_still or self._still_since_s is not None):
-            self._measure_noise(t, w, f, self._fix_still)  # a stop after the start
+            self._measure_noise(t, w, f, self._gnss_says_still(t))  # a stop after the start
         ins.propagate(w, f, dt)
         if self._imu.timing.lost_s:
             self._bridge()
@@ -323,6 +329,15 @@ class EkfEngine:
         if self._held:  # (no generator per sample when none waits)
             for t_e, fix in self._held.due(t):
                 self._fuse_epoch(fix, t_e)
+
+    def _gnss_says_still(self, t: float) -> bool:
+        """The vehicle stands at ``t`` as GNSS last said, if it said so within
+        :data:`FIX_STILL_HOLD_S`; before any fix, parked at power-up, and after a restart as
+        the old engine saw it."""
+        fix = self._last_fix
+        if fix is None:
+            return not self._win_motion.moving_before
+        return self._fix_still and t - fix.t <= FIX_STILL_HOLD_S
 
     def _measure_noise(self, t: float, w: Float3, f: Float3, still: bool) -> tuple[bool, float]:
         """Feed the noise meter with the sample at ``t`` where the vehicle is ``still`` (GNSS)
@@ -393,8 +408,7 @@ class EkfEngine:
         """
         if self._align_first_s is None:
             self._align_first_s = t
-        # no fix yet: at power-up parked; after a restart as the old engine saw it
-        still = not self._win_motion.moving_before if self._last_fix is None else self._fix_still
+        still = self._gnss_says_still(t)
         # the rate low-passed: one sample's gyro noise (0.5 deg/s an axis) and engine
         # vibration passed the threshold sample by sample, so a parked vehicle on a rough
         # engine never had a quiet window (3x the simulator's vibration: pitch 5 deg off
