@@ -80,7 +80,11 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
     truth = Truth.load(tmp_path / "truth.npz")
     tag = f"overload-{os.getpid()}"
     out_log = tmp_path / "live.log"
-    written: dict[str, float] = {}  # UTC field of a GGA/RMC -> wall time its line was written
+    # UTC field of a GGA/RMC -> wall time the epoch's last line was written: its fix is
+    # complete only then (from an earlier line, the player's own delays before the next
+    # would count: it is a thread of this process, waiting for the GIL on a loaded host)
+    written: dict[str, float] = {}
+    epoch_utc = [""]
     read_delays: list[float] = []  # wall seconds from the write of an epoch to its read
     read_at: list[float] = []  # ... and the wall time of its read, s from the start
 
@@ -103,7 +107,9 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
                 ok = write(data)
                 fields = data.split(b",")
                 if fields[0][3:] in (b"GGA", b"RMC"):
-                    written[fields[1].decode()] = time.time()
+                    epoch_utc[0] = fields[1].decode()
+                if epoch_utc[0]:
+                    written[epoch_utc[0]] = time.time()
                 return ok
 
             player._write = record  # type: ignore[method-assign]
@@ -145,9 +151,7 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
     # its own lateness (the GIL) is not counted.
     assert service.core.stats.gnss_fixes == service.gnss.decoder.counters.fixes > 0.9 * 10 * SECONDS
     assert len(read_delays) > 0.9 * 10 * SECONDS
-    # (a failure says when the worst reads were, and what the service counted then: two
-    # runs in 15 under two stress-ng hogs had the whole service stall for seconds here,
-    # its IMU too, not reproduced by this test alone in 18; docs/ROBUSTNESS.md "Open")
+    # (a failure says when the worst reads were, and what the service counted then)
     worst = np.argsort(read_delays)[-5:]
     assert np.percentile(read_delays, 95) < 0.25, (
         np.percentile(read_delays, [50, 95, 100]),
