@@ -11,9 +11,14 @@ on the bus.
 from __future__ import annotations
 
 import asyncio
+import contextlib
 import dataclasses
+import json
 import os
+import subprocess
+import sys
 import time
+from collections.abc import Iterator
 from pathlib import Path
 
 import can
@@ -69,6 +74,25 @@ async def serve_while_playing(
         assert await running == 0
 
 
+@contextlib.contextmanager
+def port_watch(device: str) -> Iterator[list[float]]:
+    """Watch ``device`` from a process of its own (:mod:`tests.port_watch`); on exit the
+    list yielded holds the spans (s) in which it held data unread, longest first."""
+    spans: list[float] = []
+    watcher = subprocess.Popen(
+        [sys.executable, "-m", "tests.port_watch", device],
+        cwd=Path(__file__).resolve().parent.parent,
+        stdin=subprocess.PIPE,
+        stdout=subprocess.PIPE,
+        text=True,
+    )
+    try:
+        yield spans
+    finally:
+        out, _ = watcher.communicate(timeout=10.0)  # closes its stdin: it reports and ends
+    spans.extend(json.loads(out))
+
+
 def busy_wait(seconds: float) -> None:
     end = time.perf_counter() + seconds
     while time.perf_counter() < end:
@@ -80,13 +104,8 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
     truth = Truth.load(tmp_path / "truth.npz")
     tag = f"overload-{os.getpid()}"
     out_log = tmp_path / "live.log"
-    # UTC field of a GGA/RMC -> wall time the epoch's last line was written: its fix is
-    # complete only then (from an earlier line, the player's own delays before the next
-    # would count: it is a thread of this process, waiting for the GIL on a loaded host)
-    written: dict[str, float] = {}
-    epoch_utc = [""]
-    read_delays: list[float] = []  # wall seconds from the write of an epoch to its read
-    read_at: list[float] = []  # ... and the wall time of its read, s from the start
+    hold_delays: list[float] = []  # wall seconds from the read of a fix to the engine
+    unread_s: list[float] = []  # spans in which the serial port held data unread, s
 
     async def main() -> GatewayService:
         with (
@@ -99,20 +118,6 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
                 tmp_path / "imu.log", tmp_path / "gnss.nmea", imu_bus, SPEED, SECONDS
             ) as pb,
         ):
-            player = pb._player
-            assert player is not None
-            write = player._write
-
-            def record(data: bytes) -> bool:
-                ok = write(data)
-                fields = data.split(b",")
-                if fields[0][3:] in (b"GGA", b"RMC"):
-                    epoch_utc[0] = fields[1].decode()
-                if epoch_utc[0]:
-                    written[epoch_utc[0]] = time.time()
-                return ok
-
-            player._write = record  # type: ignore[method-assign]
             timebase = pb.start(time.time() + 0.3)
             service = GatewayService(demo_config(truth, pb.device, tag), timebase=timebase)
             engine_imu, core_input = service.core.engine.imu, service.core.on_input
@@ -122,19 +127,15 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
                 engine_imu(sample)
 
             def watch(item: ImuSample | GnssFix) -> object:
-                if isinstance(item, GnssFix) and item.t_utc is not None:
-                    centis = round(item.t_utc * 100.0)
-                    utc = (
-                        time.strftime("%H%M%S", time.gmtime(centis // 100)) + f".{centis % 100:02d}"
-                    )
-                    if utc in written:
-                        read_delays.append(timebase.wall_at(item.t) - written[utc])
-                        read_at.append(timebase.wall_at(item.t) - timebase.origin_wall)
+                if isinstance(item, GnssFix):
+                    hold_delays.append(time.time() - timebase.wall_at(item.t))
                 return core_input(item)
 
             service.core.engine.imu = slow_imu  # type: ignore[method-assign]
             service.core.on_input = watch  # type: ignore[method-assign,assignment]
-            await serve_while_playing(service, pb, isobus, writer)
+            with port_watch(pb.device) as spans:
+                await serve_while_playing(service, pb, isobus, writer)
+            unread_s.extend(spans)
         return service
 
     service = asyncio.run(main())
@@ -146,18 +147,15 @@ def test_an_overloaded_service_stays_fair_and_honest(tmp_path: Path) -> None:
     assert stats.stale_samples > 300, stats
     assert service.core.stats.imu_dropped == stats.stale_samples + service.inbox.overloads
     # ... but every fix the GNSS decoder made reached the engine (the inbox drops IMU
-    # samples only), and the port was read promptly after each epoch was written to it
-    # (the starved reader showed seconds here). The player is a thread of this process, so
-    # its own lateness (the GIL) is not counted.
+    # samples only), soon after it was read, and the serial port never held data unread for
+    # long (the starved reader left it there for seconds). What the port held is watched by
+    # a process of its own: the time from the player's write to the read also has the
+    # kernel's delivery to the port, which on a saturated host (two stress-ng hogs) was
+    # 0.8-2.8 s at times, the loop selecting every few ms and the port empty meanwhile.
     assert service.core.stats.gnss_fixes == service.gnss.decoder.counters.fixes > 0.9 * 10 * SECONDS
-    assert len(read_delays) > 0.9 * 10 * SECONDS
-    # (a failure says when the worst reads were, and what the service counted then)
-    worst = np.argsort(read_delays)[-5:]
-    assert np.percentile(read_delays, 95) < 0.25, (
-        np.percentile(read_delays, [50, 95, 100]),
-        [(round(read_at[k], 2), round(read_delays[k], 2)) for k in worst],
-        service.status_line(),
-    )
+    assert len(hold_delays) == service.core.stats.gnss_fixes
+    assert np.percentile(hold_delays, 95) < 0.25, np.percentile(hold_delays, [50, 95, 100])
+    assert not unread_s or unread_s[0] < 1.0, (unread_s[:5], service.status_line())
     # nothing implausible went out while the core ran behind
     decoded = decode_log(out_log)
     assert [m for m in decoded if m.id == "attitude"], "no attitude frame at all"
