@@ -215,7 +215,9 @@ class EkfEngine:
         self._config_tuning: EkfTuning | None = None  # the tuning as configured
         # the gyro and accelerometer noise excess the filter's tuning has taken so far
         self._excess_taken = (1.0, 1.0)
-        self._fix_still = True  # the last fix's speed under stationary_speed_mps (or none)
+        # (receive time, under stationary_speed_mps) of the last fix with a speed: a fix
+        # without one (a receiver with no fix yet, a GGA alone) says nothing of the motion
+        self._speed_seen: tuple[float, bool] | None = None
         # lost IMU samples were bridged by one held sample: the INS position and velocity then
         # carry the unknown motion of the gap (0.3 m/s in a 0.5 s gap while braking), not
         # what P says; the next fix resets them (as after an outage)
@@ -314,8 +316,10 @@ class EkfEngine:
             if self._hint is not None:
                 self._hint.turn(w[2], dt)
             return
-        if self._p is not None and (self._fix_still or self._still_since_s is not None):
-            self._measure_noise(t, w, f, self._gnss_says_still(t))  # a stop after the start
+        if self._p is not None:
+            still = self._gnss_says_still(t)
+            if still or self._still_since_s is not None:
+                self._measure_noise(t, w, f, still)  # a stop after the start
         ins.propagate(w, f, dt)
         if self._imu.timing.lost_s:
             self._bridge()
@@ -331,13 +335,16 @@ class EkfEngine:
                 self._fuse_epoch(fix, t_e)
 
     def _gnss_says_still(self, t: float) -> bool:
-        """The vehicle stands at ``t`` as GNSS last said, if it said so within
-        :data:`FIX_STILL_HOLD_S`; before any fix, parked at power-up, and after a restart as
-        the old engine saw it."""
-        fix = self._last_fix
-        if fix is None:
-            return not self._win_motion.moving_before
-        return self._fix_still and t - fix.t <= FIX_STILL_HOLD_S
+        """The vehicle stands at ``t`` as the last fix with a speed said, if within
+        :data:`FIX_STILL_HOLD_S`. Before any: parked at power-up (after a restart as the old
+        engine saw it) for the first levelling only; after it the motion is unknown (50 s
+        without a fix from power-up, the vehicle driving off at 30 s: re-levelled on the
+        drive, roll 3 deg off with 0.6 stated)."""
+        seen = self._speed_seen
+        if seen is None:
+            return not self._win_motion.moving_before and self._ins is None
+        t_fix, still = seen
+        return still and t - t_fix <= FIX_STILL_HOLD_S
 
     def _measure_noise(self, t: float, w: Float3, f: Float3, still: bool) -> tuple[bool, float]:
         """Feed the noise meter with the sample at ``t`` where the vehicle is ``still`` (GNSS)
@@ -578,7 +585,8 @@ class EkfEngine:
         An epoch whose time is ahead of the last IMU sample waits until the IMU covers it.
         """
         self._last_fix = fix
-        self._fix_still = fix.sog_mps is None or fix.sog_mps < self.cfg.stationary_speed_mps
+        if fix.sog_mps is not None and fix.quality != FixQuality.NONE:
+            self._speed_seen = (fix.t, fix.sog_mps < self.cfg.stationary_speed_mps)
         if self._p is None:  # (before a window too: the velocity at its start)
             self._win_motion.add(fix)
         if self._ins is None or fix.quality == FixQuality.NONE:

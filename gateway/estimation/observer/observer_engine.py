@@ -591,6 +591,11 @@ class ObserverEngine:
         if self._seed is not None:
             self._apply_seed(self._observer, self._seed)
         self._noise_as_measured()  # at a restart on the move: what the last engine measured
+        if self._t_vel_rx_s is None:
+            # no GNSS velocity yet (a receiver without a fix at power-up): the tilt loop is
+            # open from here, the tilt drifting with the unlearnt gyro bias. Unstated, 50 s
+            # without a fix from power-up drifted pitch 4 deg parked with 0.85 stated.
+            self._t_open_s = t
 
     # ======================================================================= warm start
 
