@@ -9,9 +9,7 @@ from __future__ import annotations
 
 import bisect
 import dataclasses
-import functools
 import math
-import operator
 from collections.abc import Callable
 from pathlib import Path
 
@@ -35,6 +33,7 @@ from gateway.estimation.solution import LearnedState, Mode
 from gateway.fusion.engines import make_engine
 from gateway.fusion.fusion_core import RESTART_GAP_S, FusionCore
 from gateway.offline.log_replay import replay
+from sim_bus.gnss_receiver import nmea_sentence
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
 from tests.kinematics import (
@@ -841,8 +840,7 @@ def no_fix_sentence(sentence: str) -> str | None:
         fields = [fields[0], "", "", "", "", "", "", "", "", "N"]
     else:
         return None
-    body = ",".join(fields)
-    return f"${body}*{functools.reduce(operator.xor, body.encode(), 0):02X}"
+    return nmea_sentence(",".join(fields))
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
