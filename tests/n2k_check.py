@@ -169,6 +169,24 @@ def stated_sigma_deg(log: str | Path) -> list[tuple[float, float | None]]:
     return out
 
 
+#: SIGMA_TILT's resolution (0.01 deg) on a 3 m lever arm, m, and then some: a STATUS frame's
+#: tilt share of the reference point is known to this from its bytes.
+SHARE_RESOLUTION_M = 0.001
+
+
+def status_tilt_shares_m(
+    log: str | Path, lever_arm_ant_m: tuple[float, float, float]
+) -> list[tuple[float, int, float | None]]:
+    """(time, mode, |l_ant| x SIGMA_TILT in m or None when not available) of every
+    NAVGW_STATUS frame: the tilt's share of the reference point's 1-sigma that NAVIGATING
+    holds within the guard's ``navigating_position_sigma_m``."""
+    arm_m = math.hypot(*lever_arm_ant_m)
+    return [
+        (t, mode, None if sigma is None else arm_m * math.radians(sigma))
+        for (t, mode), (_, sigma) in zip(status_modes(log), stated_sigma_deg(log), strict=True)
+    ]
+
+
 @dataclass(frozen=True)
 class StatedTilt:
     """One 127257 frame's roll and pitch (rad), with the SIGMA_TILT (deg, None: not

@@ -32,6 +32,7 @@ from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.solution import LearnedState, Mode
 from gateway.fusion.engines import make_engine
 from gateway.fusion.fusion_core import RESTART_GAP_S, FusionCore
+from gateway.fusion.output_guard import GuardLimits
 from gateway.offline.log_replay import replay
 from sim_bus.gnss_receiver import nmea_sentence
 from sim_bus.scenarios import SCENARIOS, generate
@@ -49,11 +50,14 @@ from tests.kinematics import (
     with_gyro_offset,
 )
 from tests.n2k_check import (
+    NAVIGATING,
+    SHARE_RESOLUTION_M,
     Decoded,
     decode_log,
     implausible_frames,
     stated_sigma_deg,
     status_modes,
+    status_tilt_shares_m,
     tilt_beyond_stated,
 )
 
@@ -861,7 +865,9 @@ def test_gnss_without_a_fix_while_parked_then_driving_off_is_not_taken_for_rest(
     a loaded machine). The observer, levelled at power-up with no velocity to close its
     tilt loop on, drifted with the unlearnt gyro bias, parked: pitch 3 deg off with 0.85
     stated after 18 s. Nothing implausible unless NAVGW_STATUS says so, every tilt within
-    its stated accuracy."""
+    its stated accuracy, and no NAVIGATING while the tilt makes the reference point on the
+    mast decimetre-class (the observer's, from 2.5 deg as GNSS came: 18 cm off, NAVIGATING,
+    on `slope-start` seed 623)."""
     run = generate(SCENARIOS["short"], tmp_path / "run", seed=3)
     truth = Truth.load(run.truth_file)
     gnss_log = tmp_path / "gnss.nmea"
@@ -877,3 +883,7 @@ def test_gnss_without_a_fix_while_parked_then_driving_off_is_not_taken_for_rest(
     assert implausible_frames(decode_log(out_log), truth, status=status_modes(out_log)) == []
     checked, beyond = tilt_beyond_stated(out_log, truth)
     assert checked > 3000 and len(beyond) <= 0.005 * checked, beyond[:10]
+    limit_m = GuardLimits().navigating_position_sigma_m + SHARE_RESOLUTION_M
+    lever = load_config(run.config_file).vehicle.antenna_lever_arm_m
+    shares = [s for _, mode, s in status_tilt_shares_m(out_log, lever) if mode == NAVIGATING]
+    assert len(shares) > 500 and all(s is not None and s <= limit_m for s in shares)

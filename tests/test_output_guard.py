@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import math
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -213,3 +214,32 @@ def test_tilt_without_a_stated_accuracy_goes_out_as_not_available(
         Solution(**{**_fields(engine.solution()), "sigma_tilt_rad": math.radians(2.5)})
     )
     assert stated.roll_rad == 0.02 and stated.pitch_rad == -0.01 and stated.lat_deg == LAT0
+
+
+@pytest.mark.parametrize(
+    ("lever_arm_ant_m", "sigma_deg", "mode"),
+    [
+        ((0.3, 0.0, -3.0), 0.9, Mode.NAVIGATING),  # 4.7 cm on a 3 m mast
+        ((0.3, 0.0, -3.0), 1.0, Mode.DEGRADED),  # 5.3 cm
+        ((0.3, 0.0, -3.0), None, Mode.DEGRADED),  # unknown
+        ((0.0, 0.0, -1.0), 2.5, Mode.NAVIGATING),  # 4.4 cm on a cab roof
+        ((0.0, 0.0, 0.0), 2.5, Mode.NAVIGATING),  # the antenna at the reference point
+    ],
+)
+def test_navigating_holds_the_tilt_s_share_of_the_reference_point_to_rtk_class(
+    lever_arm_ant_m: Float3, sigma_deg: float | None, mode: Mode
+) -> None:
+    """The reference point is the antenna minus C l: a tilt 1-sigma makes it |l| sigma
+    uncertain. NAVIGATING (an RTK fix's centimetres) while that share is within
+    ``navigating_position_sigma_m``, DEGRADED beyond; the values themselves still go out
+    (within what STATUS byte 7 can state), nothing counted as withheld. Other modes kept."""
+    guard = OutputGuard(lever_arm_ant_m=lever_arm_ant_m)
+    engine = ScriptedEngine()
+    engine.t = T0 + 1.0
+    sigma = None if sigma_deg is None else math.radians(sigma_deg)
+    sol = guard.check(Solution(**{**_fields(engine.solution()), "sigma_tilt_rad": sigma}))
+    assert sol.mode is mode
+    assert (sol.lat_deg is not None) is (sigma is not None)
+    coasting = Solution(**{**_fields(engine.solution()), "mode": Mode.COASTING})
+    assert guard.check(replace(coasting, sigma_tilt_rad=sigma)).mode is Mode.COASTING
+    assert guard.withheld == 0

@@ -59,7 +59,7 @@ from typing import Protocol
 
 import can
 
-from drivers.samples import GnssFix, ImuAux, ImuCounters, ImuSample
+from drivers.samples import Float3, GnssFix, ImuAux, ImuCounters, ImuSample
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
@@ -155,16 +155,18 @@ class FusionCore:
         track_rest: bool = False,
         mounting: MountingCheck | None = None,
         lever_arm: LeverArmCheck | None = None,
+        lever_arm_ant_m: Float3 = (0.0, 0.0, 0.0),
     ) -> None:
         """``track_rest``: follow the rests for the learned state (the shell keeps one);
         ``mounting``, ``lever_arm``: the checks of the IMU mounting and of the antenna lever
-        arm in effect (None: none)."""
+        arm in effect (None: none); ``lever_arm_ant_m``: the configured antenna lever arm
+        (the guard's position accuracy)."""
         self.engine = engine
         self._make_engine = make_engine  # for a restart; None: the engine carries on
         self.scheduler = scheduler
         self.claimer = claimer
         self.network = network
-        self.guard = OutputGuard()
+        self.guard = OutputGuard(lever_arm_ant_m=lever_arm_ant_m)
         self.stats = FusionStats()
         self._imu_lost = imu_lost or ImuCounters()
         self._lost_marks: deque[tuple[float, int]] = deque()  # (t, cumulative lost)
@@ -238,6 +240,7 @@ class FusionCore:
                 config.vehicle.antenna_lever_arm_m, config.vehicle.imu_mounting_sigma_deg
             ),
             lever_arm=LeverArmCheck(config.vehicle.antenna_lever_arm_m),
+            lever_arm_ant_m=config.vehicle.antenna_lever_arm_m,
         )
 
     def start(self, now: float) -> Iterator[can.Message]:

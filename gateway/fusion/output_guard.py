@@ -25,7 +25,10 @@ Roll and pitch go out only with a stated accuracy: while their 1-sigma is unknow
 available", and so is the position: the reference point is the antenna minus C times its
 lever arm, as unknown as the tilt (3 m of mast and 3 deg: 16 cm). That is normal operation
 (an engine levelled on a moving window), not an implausible output: not counted, not logged,
-the mode kept.
+the mode kept. NAVIGATING states an RTK fix's centimetres for the reference point: while
+the tilt's share of its error, ``|l_ant| sigma_tilt``, is beyond ``navigating_position_sigma_m``
+the mode is DEGRADED (the observer without a fix for the first 40 s of a cold start sent the
+reference point 18 cm off, NAVIGATING, with the 2.55 deg its tilt stated on a 3 m mast).
 
 It also makes the fix fields say what the position sent is (SPEC 4): while coasting the
 position is dead reckoning (GGA quality 6; satellites, HDOP and age not available), and
@@ -60,6 +63,9 @@ class GuardLimits:
 
     max_tilt_deg: float = 60.0  # roll or pitch beyond which a wheeled vehicle has rolled over
     max_tilt_sigma_deg: float = 2.54  # largest roll/pitch 1-sigma STATUS states (SPEC 4)
+    #: The tilt's share of the reference point's horizontal 1-sigma that NAVIGATING allows,
+    #: m: an RTK fix is 1-2 cm; a 5 cm share (1 deg on a 3 m mast) leaves it 3 sigma 15 cm.
+    navigating_position_sigma_m: float = 0.05
     max_rate_dps: float = 300.0  # ADIS16334 gyro range (SPEC 1)
     max_speed_mps: float = 40.0  # 144 km/h: no farm vehicle, no road transport either
     max_accel_mps2: float = 15.0  # 1.5 g, braking or a bump: bounds position change with time
@@ -97,8 +103,16 @@ class _Track:
 class OutputGuard:
     """``check(solution)`` returns the solution with implausible content withheld."""
 
-    def __init__(self, limits: GuardLimits | None = None, warn_interval_s: float = 10.0) -> None:
+    def __init__(
+        self,
+        limits: GuardLimits | None = None,
+        warn_interval_s: float = 10.0,
+        lever_arm_ant_m: Float3 = (0.0, 0.0, 0.0),
+    ) -> None:
+        """``lever_arm_ant_m``: the antenna from the reference point, body FRD, m (its length
+        turns the tilt's sigma into the reference point's)."""
         self.limits = limits or GuardLimits()
+        self._lever_arm_m = math.hypot(*lever_arm_ant_m)
         self.counts: dict[Withheld, int] = dict.fromkeys(Withheld, 0)
         self._track: _Track | None = None  # last position sent
         self._candidate: _Track | None = None  # a new track, not yet trusted
@@ -131,6 +145,10 @@ class OutputGuard:
                 sol = replace(
                     sol, roll_rad=None, pitch_rad=None, lat_deg=None, lon_deg=None, alt_m=None
                 )
+        if sol.mode is Mode.NAVIGATING and self._lever_arm_m > 0.0:
+            sigma = sol.sigma_tilt_rad
+            if sigma is None or not self._lever_arm_m * sigma <= lim.navigating_position_sigma_m:
+                sol = replace(sol, mode=Mode.DEGRADED)
         changes: dict[str, object] = {}
         reasons: list[str] = []
         fault = False
