@@ -81,7 +81,9 @@ def trace(
             continue
         p_full = eng._p
         assert p_full is not None and eng.origin_lla is not None
-        min_eig = min(min_eig, float(np.linalg.eigvalsh(p_full)[0]))
+        # (the EPOCH state has no variance on a host that follows UTC: the rest's)
+        live = np.flatnonzero(np.diagonal(p_full) > 0.0)
+        min_eig = min(min_eig, float(np.linalg.eigvalsh(p_full[np.ix_(live, live)])[0]))
         max_asym = max(max_asym, float(np.abs(p_full - p_full.T).max()))
         i = int(np.argmin(np.abs(truth.t - s.t)))
         e = np.concatenate(

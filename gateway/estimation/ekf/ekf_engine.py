@@ -1,4 +1,4 @@
-"""The EKF engine: 19-state loosely coupled GNSS/INS filter behind the Estimator protocol.
+"""The EKF engine: 20-state loosely coupled GNSS/INS filter behind the Estimator protocol.
 
 Per IMU sample (:meth:`EkfEngine.imu`): strapdown mechanisation of the IMU point and a
 history row (for late GNSS epochs). Per GNSS epoch (:meth:`EkfEngine.gnss`): epoch time, then
@@ -26,6 +26,11 @@ Design choices (ALGORITHMS.md 3 leaves them to the implementer):
   (:mod:`gateway.estimation.gnss_error`, the model of the observer's position channel),
   restarted when the fix quality changes (a new receiver solution). RTK float and DGNSS are
   not averaged into false confidence, and RTK fixed is weighed by its own sigma.
+- Epoch times: on a host clock that does not follow UTC the epochs are placed by their
+  arrival less the configured receiver latency, whose error is a constant (30 ms 1-sigma):
+  a state (EPOCH) in the position model, v_ant tau, told from pitch (which the mast's lever
+  arm also turns into a position offset along body x) as the speed changes. None on a host
+  that follows UTC.
 - Yaw: the non-holonomic constraint (zero lateral and vertical velocity of the reference
   point) ties yaw to the direction of travel whenever the vehicle moves, forwards or in
   reverse; HDT is fused when present. No COG pseudo-measurement is needed. Its vertical
@@ -77,6 +82,7 @@ from gateway.estimation.ekf.error_state import (
     BA,
     BG,
     CHASSIS,
+    EPOCH,
     FIX,
     N_STATES,
     POS,
@@ -106,7 +112,11 @@ from gateway.estimation.engine_base import (
     gap_beyond_s,
     levelling_correction,
 )
-from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
+from gateway.estimation.epoch_clock import (
+    DELAY_WINDOW_S,
+    EpochClock,
+    late_epoch_text,
+)
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
 from gateway.estimation.gnss_track import DRIFT_WINDOW_S, GnssTrack
@@ -153,6 +163,10 @@ FIX_STILL_HOLD_S = 1.5
 EARTH_RATE_RPS = 7.292115e-5
 #: Below this GNSS speed the receiver's course is unreliable (held): direction unknown.
 COG_RELIABLE_SPEED_MPS = 0.1
+#: The EPOCH state's walk, s^2/s: on a free-running host the epochs are placed by the least
+#: receive delay over the last ``DELAY_WINDOW_S``, which the clock's drift (50 ppm: 3 ms
+#: over that window) and the serial line's scheduling move.
+EPOCH_WALK_S2_PER_S = 0.003**2 / DELAY_WINDOW_S
 
 #: The non-holonomic constraint is due ``nhc_interval_s`` after the last to within this, s
 #: (a 10 Hz receiver's epochs arrive 0.1 s apart give or take the serial line's jitter).
@@ -224,8 +238,9 @@ class EkfEngine:
         self._imu_gaps_at_reset = 0
         self._q_c = np.zeros(N_STATES)
         self._ins: Strapdown | None = None
-        self._p: Array | None = None  # error covariance (19, 19); None until heading is known
+        self._p: Array | None = None  # error covariance (20, 20); None until heading is known
         self._chassis_pitch_rad = 0.0  # the chassis's pitch against its track (CHASSIS)
+        self._epoch_err_s = 0.0  # the epochs' placement error on the host clock (EPOCH)
         # the receiver's position error (FIX states): estimate, white and wandering variance
         self._fix_err_ned_m = np.zeros(3)
         self._fix_var_white_m2 = np.zeros(3)
@@ -614,6 +629,7 @@ class EkfEngine:
             return  # within an IMU gap: the history there is a straight line, no state
         self._predict()
         self._step_s = self.cfg.covariance_period_s  # the next epoch steps it, if in time
+        self._track_epoch_error()
         p = self._p
         sig_pos = self._position_sigma(fix)
         if sig_pos is not None:
@@ -636,6 +652,7 @@ class EkfEngine:
             self._reset_from_fix(fix, t_e, row)
             return
         c_e = row[ROW_C].reshape(3, 3)
+        w_e, sig_lever = self._lever_rate(t_e, self._l_imu_ant_m)
         measurements: list[Measurement] = []
         if sig_pos is not None and p_ant is not None:
             if self._track.drifting and not self._velocity_suspect(t_e):
@@ -643,11 +660,10 @@ class EkfEngine:
             elif self._track.away:
                 self._reject_position(t_e, self._track.away_text(t_e))
             else:
-                measurements.append(self._fuse_fix_position(row, c_e, p_ant))
+                measurements.append(self._fuse_fix_position(row, c_e, w_e, p_ant))
         vel = self._gnss_velocity(fix)
         course = None
         if vel is not None:
-            w_e, sig_lever = self._lever_rate(t_e, self._l_imu_ant_m)
             measurements.append(
                 fuse_velocity(
                     row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
@@ -884,6 +900,7 @@ class EkfEngine:
         self._hist.shift(dx[POS], dx[VEL], rot, t_e)
         self._fix_err_ned_m += dx[FIX]
         self._chassis_pitch_rad += float(dx[CHASSIS])
+        self._epoch_err_s += float(dx[EPOCH])
         step = math.hypot(dx[ATT.start], dx[ATT.start + 1])
         if step > self._tilt_step_rad(self._t_s):
             self._tilt_step = (step, self._t_s)
@@ -957,6 +974,8 @@ class EkfEngine:
         p[BA, ATT] = p[ATT, BA].T
         p[CHASSIS, CHASSIS] = CHASSIS_PITCH_SIGMA_RAD**2
         self._chassis_pitch_rad = 0.0
+        self._epoch_err_s = 0.0
+        self._track_epoch_error()
         self._set_fix_error_model(sig_pos, restart=True)
         self._set_from_fix(fix, t_e, row_aligned)
         self._last_quality = fix.quality
@@ -1087,9 +1106,9 @@ class EkfEngine:
             q_bias_g_rad2_per_s3=base.q_bias_g_rad2_per_s3 * r_unit * r_unit,
             q_bias_a_m2_per_s5=base.q_bias_a_m2_per_s5 * r_unit * r_unit,
         )
-        fix_q = self._q_c[FIX].copy()
+        fix_q, epoch_q = self._q_c[FIX].copy(), self._q_c[EPOCH]
         self._tuning, self._q_c = tun, process_noise_psd(tun)
-        self._q_c[FIX] = fix_q
+        self._q_c[FIX], self._q_c[EPOCH] = fix_q, epoch_q
         return tun
 
     def _course_offset(
@@ -1354,12 +1373,12 @@ class EkfEngine:
         since; P rows reset.
 
         The new errors are the fix's, carried through the lever arm with the attitude and
-        gyro bias of the moment: dp = -b - w + [C l]x phi, dv = -e_v + [C (w x l)]x phi -
-        C [l]x dbg (the measurement models read backwards). Both correlations are kept:
-        position and fix-error states start correlated, so that a fix of the same solution
-        does not count twice; dropping the attitude term let the next fixes of an RTK
-        solution "observe" roll through a 2 m lever arm on a straight line (0.3 deg of
-        roll error reported as 0.12 deg)."""
+        gyro bias of the moment: dp = -b - w + [C l]x phi + v_ant dtau, dv = -e_v +
+        [C (w x l)]x phi - C [l]x dbg (the measurement models read backwards). Both
+        correlations are kept: position and fix-error states start correlated, so that a fix
+        of the same solution does not count twice; dropping the attitude term let the next
+        fixes of an RTK solution "observe" roll through a 2 m lever arm on a straight line
+        (0.3 deg of roll error reported as 0.12 deg)."""
         ins, hist, p = self._ins, self._hist, self._p
         assert ins is not None and hist is not None and p is not None and self._t_s is not None
         c_e = row[ROW_C].reshape(3, 3)
@@ -1380,6 +1399,9 @@ class EkfEngine:
             fwd_n**2 + fwd_e**2
         )
         v_imu[2] = fwd_d * u + v_rot_imu[2]
+        # the fix is the antenna EPOCH's tau before t_e (the INS's velocity for its vertical)
+        v_ant = v_imu + v_lever
+        p_imu += v_ant * self._epoch_err_s
         # the INS's own motion since t_e carried on (as a fused epoch's correction is): with a
         # constant velocity over the age, an epoch 4 s late in a pull-away set 1.5 m/s where
         # the vehicle did 3, and the next epochs were rejected as glitches
@@ -1401,6 +1423,7 @@ class EkfEngine:
         m[5, BG] = (c_e @ skew(self._l_imu_b))[2]
         m[0:3, ATT] = skew(c_l) + age_s * m[3:6, ATT]
         m[0:3, BG] = age_s * m[3:6, BG]
+        m[0:3, EPOCH] = v_ant
         pv = slice(POS.start, VEL.stop)
         cross = m @ p
         p[pv, :] = cross
@@ -1433,16 +1456,40 @@ class EkfEngine:
         t_rej = self._t_velocity_rejected_s
         return t_rej is not None and t_e - t_rej <= DRIFT_WINDOW_S
 
-    def _fuse_fix_position(self, row: Array, c_e: Array, p_ant: Array) -> Measurement:
-        """The fix's antenna position as a measurement of the state at its epoch (``row``)."""
+    def _fuse_fix_position(self, row: Array, c_e: Array, w_e: Array, p_ant: Array) -> Measurement:
+        """The fix's antenna position as a measurement of the state at its epoch (``row``,
+        body rate ``w_e``)."""
+        l_b = self._l_imu_ant_b
         return fuse_position(
             row[ROW_P],
             c_e,
-            self._l_imu_ant_b,
+            l_b,
             p_ant,
             np.sqrt(self._fix_var_white_m2),
             self._fix_err_ned_m,
+            row[ROW_V] + c_e @ cross3(w_e, l_b),
+            self._epoch_err_s,
         )
+
+    def _track_epoch_error(self) -> None:
+        """The EPOCH state as the clock knows the epochs' times: on a host clock that does
+        not follow UTC, a constant of the clock's ``epoch_sigma_s`` (the configured receiver
+        latency's error), walking as the least receive delay it is placed by may move
+        (:data:`EPOCH_WALK_S2_PER_S`); on one that does, none (estimate and P's row cleared
+        when the clock finds it follows UTC)."""
+        p = self._p
+        assert p is not None
+        sigma_s = self.clock.epoch_sigma_s
+        if sigma_s == 0.0:
+            if p.item(EPOCH, EPOCH) > 0.0 or self._epoch_err_s:
+                p[EPOCH, :] = 0.0
+                p[:, EPOCH] = 0.0
+                self._epoch_err_s = 0.0
+            self._q_c[EPOCH] = 0.0
+            return
+        if p.item(EPOCH, EPOCH) == 0.0:
+            p[EPOCH, EPOCH] = sigma_s * sigma_s
+        self._q_c[EPOCH] = EPOCH_WALK_S2_PER_S
 
     def _reject_position(self, t_e: float, why: str) -> None:
         """The fix's position is not used: counted, told to the track, logged (rate-limited)."""
@@ -1456,13 +1503,7 @@ class EkfEngine:
         sig = fix_position_sigma_m(fix)
         if fix.lat_deg is None or fix.lon_deg is None or fix.alt_m is None or sig is None:
             return None
-        sig_ned = np.maximum(np.array(sig), 1e-3)
-        vel, sigma_t = fix.vel_ne_mps, self.clock.epoch_sigma_s
-        if sigma_t and vel is not None:
-            # the position of an instant within sigma_t of the epoch: v sigma_t (the
-            # diagonal of sigma_t^2 v v')
-            sig_ned[:2] = np.hypot(sig_ned[:2], np.array(vel) * sigma_t)
-        return sig_ned
+        return np.maximum(np.array(sig), 1e-3)
 
     def _gnss_velocity(self, fix: GnssFix) -> tuple[Array, float] | None:
         """Horizontal antenna velocity (2,) and its 1-sigma, from SOG/COG.

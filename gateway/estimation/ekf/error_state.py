@@ -13,7 +13,7 @@ which the filter estimates anyway; transport rate at 5 m/s is v/R = 8e-7 rad/s; 
 acceleration 2 w_ie v = 7e-4 m/s^2 at 5 m/s is below the accelerometer bias being estimated.
 Gravity is constant over a field.
 
-Error state (19, :data:`POS` ... :data:`CHASSIS`), true = nominal + error, except attitude:
+Error state (20, :data:`POS` ... :data:`EPOCH`), true = nominal + error, except attitude:
 C_bn_true = (I + [phi]x) C_bn, phi a small rotation in NED. Continuous error dynamics
 
     d(dp)/dt = dv
@@ -22,14 +22,20 @@ C_bn_true = (I + [phi]x) C_bn, phi a small rotation in NED. Continuous error dyn
     d(dba)/dt = w_ba,   d(dbg)/dt = w_bg   (random walks: see EkfTuning)
     d(db)/dt = -db / tau_fix + w_fix       (the receiver's position error, NED)
     d(dc)/dt = w_c                         (the chassis's pitch against its track)
+    d(dtau)/dt = w_tau                     (the epochs' placement on the host clock)
 
-The last three states are the error of the receiver's current position solution, first-order
+The states db are the error of the receiver's current position solution, first-order
 Gauss-Markov (:mod:`gateway.estimation.gnss_error`): RTK float and DGNSS errors wander over
 tens of seconds; taken as white, a minute of them collapsed the position variance and the
 filter followed the wander. The engine restarts them when the fix quality changes. The
 chassis's pitch against its track (:mod:`gateway.estimation.chassis`) is what the
 non-holonomic constraint's vertical row allows: the reference point moves along the track,
-which the chassis, on its tyres, may pitch against.
+which the chassis, on its tyres, may pitch against. On a host clock that does not follow UTC
+the epochs are placed by their arrival less the configured receiver latency, a constant
+error tau (:mod:`gateway.estimation.epoch_clock`): a fix is then the antenna where it was
+tau earlier, v tau along its track. Taken as white noise, 18 ms of it went into pitch through
+the 3 m mast's lever arm (a position offset along the body x axis either way), 0.2 deg off
+with 0.08 stated on rough ground; as a state it is told from pitch as the speed changes.
 
 Measurement models return a :class:`Measurement` (z, H, R) as in pyins; :func:`correct`
 does the algebra for any of them (sequential, NIS gate).
@@ -71,7 +77,8 @@ BA = slice(9, 12)  # accelerometer bias error, body, m/s^2
 BG = slice(12, 15)  # gyro bias error, body, rad/s
 FIX = slice(15, 18)  # error of the receiver's position solution, NED, m
 CHASSIS = 18  # the chassis's pitch against its track, rad
-N_STATES = 19
+EPOCH = 19  # the epochs' placement error on the host clock (late: positive), s
+N_STATES = 20
 
 #: Low-pass time constant of the body rate used for lever-arm velocities at the current time:
 #: one sample of ARW noise is 0.5 deg/s, 2.5 cm/s at a 3 m lever arm.
@@ -127,8 +134,8 @@ def chi2_sf(x: float, dof: int) -> float:
 class Measurement:
     """One measurement linearised about the nominal state: z = H dx + v, v ~ N(0, R).
 
-    ``z`` shape (m,) innovation (measured minus predicted), ``h`` shape (m, 19), ``r`` (m, m);
-    ``c`` (19, m), if any, the covariance of the error state with v where v is noise the
+    ``z`` shape (m,) innovation (measured minus predicted), ``h`` shape (m, 20), ``r`` (m, m);
+    ``c`` (20, m), if any, the covariance of the error state with v where v is noise the
     state's own process noise shares (the gyro's white noise in a zero-rate update).
     """
 
@@ -149,7 +156,7 @@ class Correction:
 
 
 def correct(p: Array, dx: Array, m: Measurement, gate_sigma: float) -> Correction:
-    """Fuse ``m`` into the error state ``dx`` (19,) and covariance ``p`` (19, 19), in place.
+    """Fuse ``m`` into the error state ``dx`` (20,) and covariance ``p`` (20, 20), in place.
 
     Sequential form: the innovation is taken relative to the error already estimated in this
     batch (z - H dx), so several measurements of one epoch share one feedback. Rejected if
@@ -289,7 +296,7 @@ class Strapdown:
         return out
 
     def inject(self, dx: Array, age_s: float = 0.0) -> Mat9:
-        """Closed-loop feedback of the error estimate ``dx`` (19,) of a time ``age_s`` ago;
+        """Closed-loop feedback of the error estimate ``dx`` (20,) of a time ``age_s`` ago;
         returns the rotation.
 
         Position, velocity and biases add, the position with the velocity error's drift
@@ -318,7 +325,7 @@ class Strapdown:
 
 
 def _flat(rows: slice, cols: slice) -> npt.NDArray[np.intp]:
-    """Flat indices of the block (rows, cols) of an (19, 19) matrix."""
+    """Flat indices of the block (rows, cols) of an (20, 20) matrix."""
     return np.arange(N_STATES * N_STATES).reshape(N_STATES, N_STATES)[rows, cols]
 
 
@@ -335,7 +342,7 @@ _PHI_FIX = np.diagonal(_flat(FIX, FIX)).copy()
 def transition_matrix(
     t_s: float, dv_f_ned_mps: Array, c_dt: Array, fix_decay: float = 1.0
 ) -> Array:
-    """Phi (19, 19) over an interval T from the IMU sums of :meth:`Strapdown.take_interval`.
+    """Phi (20, 20) over an interval T from the IMU sums of :meth:`Strapdown.take_interval`.
 
     A = F T with F averaged over the interval (f_n T = integral f_n dt, C T = integral C dt);
     A^4 = 0 (the chain bg -> phi -> v -> p is three long), so I + A + A^2/2 + A^3/6 is
@@ -363,10 +370,11 @@ def transition_matrix(
 
 
 def process_noise_psd(tuning: EkfTuning) -> Array:
-    """Diagonal continuous process noise Q_c (19,) of the error state.
+    """Diagonal continuous process noise Q_c (20,) of the error state.
 
     White accel/gyro noise enters dv and phi through C_bn; being isotropic, C q I C^T = q I.
-    The fix-error states' driving noise depends on the fix: the engine sets it per epoch.
+    The fix-error and epoch states' driving noise depends on the fix and the host clock: the
+    engine sets it per epoch.
     """
     q = np.zeros(N_STATES)
     q[VEL] = tuning.q_accel_m2_per_s3
@@ -410,17 +418,25 @@ def fuse_position(
     p_ant_meas_ned_m: Array,
     white_sigma_ned_m: Array,
     fix_error_ned_m: Array,
+    v_ant_ned_mps: Array,
+    epoch_error_s: float,
 ) -> Measurement:
-    """Antenna position as the receiver reports it: p + C l + b, l = antenna relative to the
-    IMU (body, m), b the receiver's position error (its wander; ``white_sigma_ned_m`` the rest).
+    """Antenna position as the receiver reports it: p + C l + b - v_ant tau, l = antenna
+    relative to the IMU (body, m), b the receiver's position error (its wander;
+    ``white_sigma_ned_m`` the rest), tau the epoch's placement error (s, late: positive) and
+    v_ant the antenna's velocity.
 
-    Shapes (3,) except ``c_bn`` (3, 3). dz = dp - [C l]x phi + db.
+    Shapes (3,) except ``c_bn`` (3, 3). dz = dp - [C l]x phi + db - v_ant dtau.
     """
     cl_n, cl_e, cl_d = lever_arm_position_ned(to_mat9(c_bn), l_ant_b.tolist())
     h = _H_POSITION.copy()
     h[:, ATT] = _minus_skew(cl_n, cl_e, cl_d)
+    vn, ve, vd = v_ant_ned_mps.tolist()
+    h[:, EPOCH] = (-vn, -ve, -vd)
     (pn, pe, pd), (mn, me, md) = p_ned_m.tolist(), p_ant_meas_ned_m.tolist()
-    bn, be, bd = fix_error_ned_m.tolist()
+    bn = fix_error_ned_m.item(0) - vn * epoch_error_s
+    be = fix_error_ned_m.item(1) - ve * epoch_error_s
+    bd = fix_error_ned_m.item(2) - vd * epoch_error_s
     z = np.array((mn - (pn + cl_n + bn), me - (pe + cl_e + be), md - (pd + cl_d + bd)))
     sn, se, sd = white_sigma_ned_m.tolist()
     r = np.array(((sn * sn, 0.0, 0.0), (0.0, se * se, 0.0), (0.0, 0.0, sd * sd)))
