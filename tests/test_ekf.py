@@ -59,22 +59,22 @@ def _numeric_h(
 
 def test_position_jacobian_matches_finite_differences() -> None:
     b = np.array([0.1, -0.2, 0.05])  # the receiver's position error (FIX states)
-    v_ant, tau = np.array([3.0, -1.0, 0.2]), 0.018  # the epoch placed 18 ms late (EPOCH)
+    v_ant = np.array([3.0, -1.0, 0.2])  # the antenna's velocity (the EPOCH column)
 
-    def z_of(b: np.ndarray, tau: float) -> np.ndarray:
-        return fuse_position(P_NED, C_BN, L_B, np.zeros(3), np.ones(3), b, v_ant, tau).z
+    def z_of(b: np.ndarray) -> np.ndarray:
+        return fuse_position(P_NED, C_BN, L_B, np.zeros(3), np.ones(3), b, v_ant).z
 
-    m = fuse_position(P_NED, C_BN, L_B, np.zeros(3), np.ones(3), b, v_ant, tau)
+    m = fuse_position(P_NED, C_BN, L_B, np.zeros(3), np.ones(3), b, v_ant)
     num = _numeric_h(lambda p, v, c, w: p + c @ L_B, 3)
     eps = 1e-6
     for j in range(3):  # d(prediction)/d(db) = -dz/d(db), by central differences
         db = np.zeros(3)
         db[j] = eps
-        num[:, FIX.start + j] = -(z_of(b + db, tau) - z_of(b - db, tau)) / (2 * eps)
-    num[:, EPOCH] = -(z_of(b, tau + eps) - z_of(b, tau - eps)) / (2 * eps)
+        num[:, FIX.start + j] = -(z_of(b + db) - z_of(b - db)) / (2 * eps)
+    # an epoch placed dtau late is the antenna where it was dtau earlier: p - v_ant dtau
+    num[:, EPOCH] = -v_ant
     assert_allclose(m.h, num, atol=1e-8)
-    # the fix is the antenna tau before its epoch: v_ant tau behind
-    assert_allclose(m.z, -(P_NED + C_BN @ L_B + b - v_ant * tau))
+    assert_allclose(m.z, -(P_NED + C_BN @ L_B + b))
 
 
 def test_velocity_jacobian_matches_finite_differences() -> None:

@@ -27,10 +27,10 @@ Design choices (ALGORITHMS.md 3 leaves them to the implementer):
   restarted when the fix quality changes (a new receiver solution). RTK float and DGNSS are
   not averaged into false confidence, and RTK fixed is weighed by its own sigma.
 - Epoch times: on a host clock that does not follow UTC the epochs are placed by their
-  arrival less the configured receiver latency, whose error is a constant (30 ms 1-sigma):
-  a state (EPOCH) in the position model, v_ant tau, told from pitch (which the mast's lever
-  arm also turns into a position offset along body x) as the speed changes. None on a host
-  that follows UTC.
+  arrival less the configured receiver latency, whose error is a constant (0.1 s 1-sigma):
+  a state (EPOCH), its estimate taken out of each epoch's time and its error in the
+  position model (v_ant dtau), told from pitch (which the mast's lever arm also turns into
+  a position offset along body x) as the speed changes. None on a host that follows UTC.
 - Yaw: the non-holonomic constraint (zero lateral and vertical velocity of the reference
   point) ties yaw to the direction of travel whenever the vehicle moves, forwards or in
   reverse; HDT is fused when present. No COG pseudo-measurement is needed. Its vertical
@@ -607,7 +607,10 @@ class EkfEngine:
         if self._ins is None or fix.quality == FixQuality.NONE:
             return
         t_e = self.clock.epoch_time(fix)
-        if t_e is not None and not self._held.hold(t_e, fix, self._t_s):
+        if t_e is None:
+            return
+        t_e -= self._epoch_err_s  # placed late by the EPOCH estimate (a free-running host)
+        if not self._held.hold(t_e, fix, self._t_s):
             self._fuse_epoch(fix, t_e)
 
     def _fuse_epoch(self, fix: GnssFix, t_e: float) -> None:
@@ -1399,9 +1402,8 @@ class EkfEngine:
             fwd_n**2 + fwd_e**2
         )
         v_imu[2] = fwd_d * u + v_rot_imu[2]
-        # the fix is the antenna EPOCH's tau before t_e (the INS's velocity for its vertical)
+        # the fix is the antenna dtau before t_e (the INS's velocity for its vertical)
         v_ant = v_imu + v_lever
-        p_imu += v_ant * self._epoch_err_s
         # the INS's own motion since t_e carried on (as a fused epoch's correction is): with a
         # constant velocity over the age, an epoch 4 s late in a pull-away set 1.5 m/s where
         # the vehicle did 3, and the next epochs were rejected as glitches
@@ -1468,8 +1470,13 @@ class EkfEngine:
             np.sqrt(self._fix_var_white_m2),
             self._fix_err_ned_m,
             row[ROW_V] + c_e @ cross3(w_e, l_b),
-            self._epoch_err_s,
         )
+
+    def _epoch_sigma_s(self) -> float:
+        """1-sigma of the epoch times, s: the EPOCH state's once the filter runs (what it has
+        learnt of them), the clock's before."""
+        p = self._p
+        return self.clock.epoch_sigma_s if p is None else math.sqrt(p.item(EPOCH, EPOCH))
 
     def _track_epoch_error(self) -> None:
         """The EPOCH state as the clock knows the epochs' times: on a host clock that does
@@ -1519,7 +1526,7 @@ class EkfEngine:
             self._last_vel = None
             return np.zeros(2), math.hypot(sigma, fix.sog_mps)
         last, self._last_vel = self._last_vel, (fix.t, vel)
-        sigma_t = self.clock.epoch_sigma_s
+        sigma_t = self._epoch_sigma_s()
         if sigma_t and last is not None and fix.t > last[0]:
             # the velocity of an instant within sigma_t of the epoch: a sigma_t
             accel = math.dist(vel, last[1]) / (fix.t - last[0])

@@ -419,12 +419,11 @@ def fuse_position(
     white_sigma_ned_m: Array,
     fix_error_ned_m: Array,
     v_ant_ned_mps: Array,
-    epoch_error_s: float,
 ) -> Measurement:
-    """Antenna position as the receiver reports it: p + C l + b - v_ant tau, l = antenna
-    relative to the IMU (body, m), b the receiver's position error (its wander;
-    ``white_sigma_ned_m`` the rest), tau the epoch's placement error (s, late: positive) and
-    v_ant the antenna's velocity.
+    """Antenna position as the receiver reports it: p + C l + b, l = antenna relative to the
+    IMU (body, m), b the receiver's position error (its wander; ``white_sigma_ned_m`` the
+    rest), at the epoch's time as placed (the EPOCH estimate taken out): an error dtau
+    there (s, late: positive) is the antenna's velocity ``v_ant_ned_mps`` times it back.
 
     Shapes (3,) except ``c_bn`` (3, 3). dz = dp - [C l]x phi + db - v_ant dtau.
     """
@@ -434,9 +433,7 @@ def fuse_position(
     vn, ve, vd = v_ant_ned_mps.tolist()
     h[:, EPOCH] = (-vn, -ve, -vd)
     (pn, pe, pd), (mn, me, md) = p_ned_m.tolist(), p_ant_meas_ned_m.tolist()
-    bn = fix_error_ned_m.item(0) - vn * epoch_error_s
-    be = fix_error_ned_m.item(1) - ve * epoch_error_s
-    bd = fix_error_ned_m.item(2) - vd * epoch_error_s
+    bn, be, bd = fix_error_ned_m.tolist()
     z = np.array((mn - (pn + cl_n + bn), me - (pe + cl_e + be), md - (pd + cl_d + bd)))
     sn, se, sd = white_sigma_ned_m.tolist()
     r = np.array(((sn * sn, 0.0, 0.0), (0.0, se * se, 0.0), (0.0, 0.0, sd * sd)))
