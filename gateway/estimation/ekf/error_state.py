@@ -34,7 +34,7 @@ which the chassis, on its tyres, may pitch against. On a host clock that does no
 the epochs are placed by their arrival less the configured receiver latency, a constant
 error tau (:mod:`gateway.estimation.epoch_clock`): a fix is then the antenna where it was
 tau earlier, v tau along its track. Taken as white noise, 18 ms of it went into pitch through
-the 3 m mast's lever arm (a position offset along the body x axis either way), 0.2 deg off
+the 3 m mast's lever arm (a position offset along the body x axis either way), 0.17 deg off
 with 0.08 stated on rough ground; as a state it is told from pitch as the speed changes.
 
 Measurement models return a :class:`Measurement` (z, H, R) as in pyins; :func:`correct`
