@@ -349,6 +349,8 @@ class FusionCore:
         except Exception as err:  # a bug must not stop the gateway: _engine_raised
             fault = self._engine_raised(t, "its solution", err)
             return self._counted(chain(polled, fault) if polled else fault)
+        if self.mounting is not None:
+            self.mounting.solution(sol)
         if self._fix_to_check is not None:
             self._check_geometry(sol)
         if self._faulted:

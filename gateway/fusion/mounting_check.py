@@ -89,15 +89,27 @@ class MountingCheck:
         self.mounting_sigma_deg = mounting_sigma_deg
         self.found: tuple[TiltOff, ...] = ()  # the axes off at the last look that found any
         self._next_t: float | None = None
+        self._tilt_sums = [0.0, 0.0, 0.0]  # roll, pitch, count of the solutions since
 
     @property
     def off(self) -> bool:
         """The drive has shown the mounting off (latched: the mounting does not change)."""
         return bool(self.found)
 
+    def solution(self, sol: Solution) -> None:
+        """A solution made for the bus: its roll and pitch go into the interval's mean."""
+        if sol.roll_rad is not None and sol.pitch_rad is not None:
+            sums = self._tilt_sums
+            sums[0] += sol.roll_rad
+            sums[1] += sol.pitch_rad
+            sums[2] += 1.0
+
     def epoch(self, fix: GnssFix, sol: Solution) -> None:
-        """One GNSS fix and the solution after it; every CHECK_INTERVAL_S, the verdict."""
-        self.tilt.epoch(fix, sol)
+        """One GNSS fix and the solution after it, with the mean roll and pitch sent since
+        the last (:meth:`solution`); every CHECK_INTERVAL_S, the verdict."""
+        roll_sum, pitch_sum, n = self._tilt_sums
+        self._tilt_sums = [0.0, 0.0, 0.0]
+        self.tilt.epoch(fix, sol, (roll_sum / n, pitch_sum / n) if n else None)
         if self._next_t is not None and fix.t < self._next_t:
             return
         self._next_t = fix.t + CHECK_INTERVAL_S
