@@ -81,6 +81,12 @@ def test_velocity_jacobian_matches_finite_differences() -> None:
     m = fuse_velocity(V_NED, C_BN, W_B, L_B, np.zeros(2), 0.02)
     num = _numeric_h(lambda p, v, c, w: (v + c @ np.cross(w, L_B))[:2], 2)
     assert_allclose(m.h, num, atol=1e-8)
+    # a velocity placed dtau late is the antenna's dtau earlier: v_ant - a_ant dtau
+    a_ant = np.array([0.7, -0.3, 0.1])
+    timed = fuse_velocity(V_NED, C_BN, W_B, L_B, np.zeros(2), 0.02, a_ant)
+    num[:, EPOCH] = -a_ant[:2]
+    assert_allclose(timed.h, num, atol=1e-8)
+    assert_allclose(timed.z, m.z)
 
 
 def test_nonholonomic_jacobian_matches_finite_differences() -> None:

@@ -39,7 +39,14 @@ from tests.kinematics import (
     motion_time,
     state_at,
 )
-from tests.n2k_check import attitude_errors_deg, decode_log, stated_tilts, tilt_beyond_stated
+from tests.n2k_check import (
+    attitude_errors_deg,
+    decode_log,
+    position_beyond_mode,
+    stated_tilts,
+    status_modes,
+    tilt_beyond_stated,
+)
 
 
 def beyond_stated(t_s: float, off_deg: float, sigma_rad: float) -> list[str]:
@@ -744,6 +751,42 @@ def test_a_free_running_host_clock_s_epoch_error_is_learnt_not_taken_for_pitch(
     assert checked > 40_000 and beyond == []
     pitch_deg = attitude_errors_deg(decode_log(out), truth, after_s=600.0)[:, 1]
     assert abs(float(np.mean(pitch_deg))) < 0.06, float(np.mean(pitch_deg))
+
+
+@pytest.mark.parametrize(
+    ("seed", "latency_s", "navigating_s"),
+    [(626, 0.068, 5.0), (627, 0.15, 15.0)],
+    ids=["18-ms-off", "128-ms-off"],
+)
+def test_a_free_running_host_s_pull_away_is_no_epoch_time_on_the_bus(
+    tmp_path: Path, seed: int, latency_s: float, navigating_s: float
+) -> None:
+    """The EKF's cold start on a slope, the vehicle pulling away as it aligns, on a host
+    clock 30 s off UTC: the epochs are placed at arrival less the default 50 ms, 18 ms
+    late with the receiver's 68 ms, 128 ms with a 150 ms one. While the speed rises, an
+    epoch dtau off and a velocity error look alike (p - v dtau and v - a dtau against dv t
+    and dv): the EPOCH state took the velocity's timing error as white (a dtau's size in
+    its sigma) and fitted the alignment's velocity error as epoch time, -81 ms against 18
+    (6 positions 0.20 m off, NAVIGATING; 0.45 m with the 150 ms receiver). The velocity
+    now carries a_ant dtau in its model, the INS's acceleration, and NAVIGATING waits for
+    the speed times the epoch time's sigma to be within 5 cm: every position within
+    NAVIGATING's bound, and NAVIGATING 2 s after the alignment (13 s with the 128 ms
+    error: at 3 m/s a straight line tells the epoch time only slowly), through `navgw
+    replay`."""
+    table = {"base": "slope-start", "gnss": {"host_clock_offset_s": 30.0, "latency_s": latency_s}}
+    scenario = scenario_from_toml(table)
+    run = generate(scenario, tmp_path, seed=seed)
+    out = tmp_path / "out.log"
+    vehicle = gateway_config(scenario, receiver_latency_s=0.0).vehicle  # [gnss] left default
+    replay(run.imu_log, run.gnss_log, out, GatewayConfig(vehicle=vehicle).with_engine(Engine.EKF))
+    truth = Truth.load(run.truth_file)
+    checked, beyond = position_beyond_mode(out, truth)
+    assert checked > 8_000 and beyond == []
+    assert tilt_beyond_stated(out, truth)[1] == []
+    modes = status_modes(out)
+    aligned = next(t for t, mode in modes if mode not in (Mode.INITIALISING, Mode.ALIGNING))
+    navigating = next(t for t, mode in modes if mode == Mode.NAVIGATING)
+    assert navigating - aligned < navigating_s, navigating - aligned
 
 
 def test_a_noisier_unit_s_accel_bias_unlearnt_without_a_heading_is_within_the_stated() -> None:

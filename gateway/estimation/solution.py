@@ -100,6 +100,11 @@ class Solution:
         return math.atan2(ve, vn) % (2.0 * math.pi), math.hypot(vn, ve)
 
 
+#: A share of the reference point's horizontal 1-sigma, m, beyond the fix's own (an RTK
+#: fix's 1-2 cm), that NAVIGATING allows: the tilt's over the antenna lever arm (1 deg on a
+#: 3 m mast), the epoch time's over the speed (a free-running host's). 5 cm leaves 3 sigma
+#: within 15 cm.
+NAVIGATING_POSITION_SHARE_M = 0.05
 #: An IMU sample stands for at most this long (the samples lost before it included) without
 #: making the solution DEGRADED: 10 samples at 204.8 Hz.
 MAX_IMU_STEP_S = 0.05
@@ -201,13 +206,16 @@ def navigation_mode(
     imu_gap: bool = False,
     gnss_glitch: bool = False,
     heading_within_accuracy: bool = True,
+    position_within_accuracy: bool = True,
 ) -> Mode:
     """The mode every engine reports, in order of precedence: FAULT (IMU data unusable),
     ALIGNING (no attitude/heading yet), COASTING (GNSS velocity timed out, the dead-reckoned
     position still ``coast_within_accuracy`` and the heading ``heading_within_accuracy``;
     DEGRADED beyond), DEGRADED (IMU alarm, a recent gap in the IMU stream, GNSS positions
-    rejected as glitches, the heading's 1-sigma beyond NAVIGATING's, or a fix quality
-    outside ``navigating_fix_qualities``), else NAVIGATING."""
+    rejected as glitches, the heading's 1-sigma beyond NAVIGATING's, a share of the
+    reference point's beyond :data:`NAVIGATING_POSITION_SHARE_M` (not
+    ``position_within_accuracy``), or a fix quality outside ``navigating_fix_qualities``),
+    else NAVIGATING."""
     if fault:
         return Mode.FAULT
     if not aligned:
@@ -216,6 +224,8 @@ def navigation_mode(
         within = coast_within_accuracy and heading_within_accuracy
         return Mode.COASTING if within else Mode.DEGRADED
     if imu_alarm or imu_gap or gnss_glitch or not heading_within_accuracy:
+        return Mode.DEGRADED
+    if not position_within_accuracy:
         return Mode.DEGRADED
     if fix is None or int(fix.quality) not in navigating_fix_qualities:
         return Mode.DEGRADED

@@ -49,7 +49,7 @@ from enum import Enum
 from drivers.log_limit import LogLimiter
 from drivers.samples import FixQuality, Float3
 from drivers.units import DEG_TO_RAD
-from gateway.estimation.solution import Mode, Solution
+from gateway.estimation.solution import NAVIGATING_POSITION_SHARE_M, Mode, Solution
 
 log = logging.getLogger(__name__)
 
@@ -64,8 +64,8 @@ class GuardLimits:
     max_tilt_deg: float = 60.0  # roll or pitch beyond which a wheeled vehicle has rolled over
     max_tilt_sigma_deg: float = 2.54  # largest roll/pitch 1-sigma STATUS states (SPEC 4)
     #: The tilt's share of the reference point's horizontal 1-sigma that NAVIGATING allows,
-    #: m: an RTK fix is 1-2 cm; a 5 cm share (1 deg on a 3 m mast) leaves it 3 sigma 15 cm.
-    navigating_position_sigma_m: float = 0.05
+    #: m (:data:`~gateway.estimation.solution.NAVIGATING_POSITION_SHARE_M`).
+    navigating_position_sigma_m: float = NAVIGATING_POSITION_SHARE_M
     max_rate_dps: float = 300.0  # ADIS16334 gyro range (SPEC 1)
     max_speed_mps: float = 40.0  # 144 km/h: no farm vehicle, no road transport either
     max_accel_mps2: float = 15.0  # 1.5 g, braking or a bump: bounds position change with time

@@ -102,7 +102,7 @@ from gateway.estimation.ekf.error_state import (
     set_symmetrised,
     transition_matrix,
 )
-from gateway.estimation.ekf.ins_history import ROW_C, ROW_P, ROW_V, InsHistory
+from gateway.estimation.ekf.ins_history import ROW_C, ROW_P, ROW_T, ROW_V, InsHistory
 from gateway.estimation.engine_base import (
     HeldEpochs,
     ImuHealth,
@@ -134,6 +134,7 @@ from gateway.estimation.lever_arm import (
 )
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
+    NAVIGATING_POSITION_SHARE_M,
     Convergence,
     LearnedState,
     Mode,
@@ -217,7 +218,6 @@ class EkfEngine:
         self._pending_turn_rad = 0.0  # turned in the rest spans not checked yet
         self._t_course_s: float | None = None  # the last epoch with a course
         self.clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
-        self._last_vel: tuple[float, tuple[float, float]] | None = None
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_ant_m = float(np.linalg.norm(self._l_ant_b))
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)
@@ -667,12 +667,15 @@ class EkfEngine:
         vel = self._gnss_velocity(fix)
         course = None
         if vel is not None:
+            a_ant = self._antenna_accel_ned(t_e, c_e, w_e)
+            a_col, sigma_v = None, math.hypot(vel[1], sig_lever)
+            if a_ant is not None:  # its smooth part in the EPOCH column, the rest white
+                a_col, sigma_v = a_ant[0], math.hypot(sigma_v, a_ant[1] * self._epoch_sigma_s())
             measurements.append(
-                fuse_velocity(
-                    row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], math.hypot(vel[1], sig_lever)
-                )
+                fuse_velocity(row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], sigma_v, a_col)
             )
-            course = self._course_residual(fix, t_e, row, w_e, vel[1])
+            sigma_course = math.hypot(vel[1], self._velocity_timing_sigma_mps(a_ant))
+            course = self._course_residual(fix, t_e, row, w_e, sigma_course)
             if course is not None:
                 self._fold_rest_turn()
         at_rest = fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps
@@ -1132,7 +1135,8 @@ class EkfEngine:
             self._direction_since_rest = self._direction_from_rest(t_e, row)
         forward = self._forward_at(vel, row, w_e)
         course = heading_from_antenna_course(vel, row[ROW_C], w_e, self._l_ant_b, forward)
-        sigma_v = math.hypot(measured[1], sig_lever)
+        a_ant = self._antenna_accel_ned(t_e, row[ROW_C].reshape(3, 3), w_e)
+        sigma_v = math.hypot(measured[1], sig_lever, self._velocity_timing_sigma_mps(a_ant))
         self._courses.add(t_e, wrap_pi(course - yaw_e), sigma_v / speed)
         cfg = self.cfg
         known = self._hint is not None or self._direction_since_rest is not None
@@ -1426,6 +1430,9 @@ class EkfEngine:
         m[0:3, ATT] = skew(c_l) + age_s * m[3:6, ATT]
         m[0:3, BG] = age_s * m[3:6, BG]
         m[0:3, EPOCH] = v_ant
+        a_ant = self._antenna_accel_ned(t_e, c_e, w_e)
+        if a_ant is not None:  # (and the velocity a_ant dtau, its horizontal from the fix)
+            m[3:5, EPOCH] = a_ant[0][:2]
         pv = slice(POS.start, VEL.stop)
         cross = m @ p
         p[pv, :] = cross
@@ -1523,15 +1530,45 @@ class EkfEngine:
         sigma = max(self.cfg.gnss_vel_sigma_mps, DEFAULT_GNSS_SIGMAS[int(fix.quality)][2])
         vel = fix.vel_ne_mps
         if vel is None or fix.sog_mps < COG_RELIABLE_SPEED_MPS:
-            self._last_vel = None
             return np.zeros(2), math.hypot(sigma, fix.sog_mps)
-        last, self._last_vel = self._last_vel, (fix.t, vel)
-        sigma_t = self._epoch_sigma_s()
-        if sigma_t and last is not None and fix.t > last[0]:
-            # the velocity of an instant within sigma_t of the epoch: a sigma_t
-            accel = math.dist(vel, last[1]) / (fix.t - last[0])
-            sigma = math.hypot(sigma, accel * sigma_t)
         return np.array(vel), sigma
+
+    def _antenna_accel_ned(self, t_e: float, c_e: Array, w_e: Array) -> tuple[Array, float] | None:
+        """The antenna's acceleration at ``t_e`` while the epochs' times are uncertain (None
+        on a UTC host): what a velocity placed dtau off is off by, a_ant dtau. Its smooth
+        part, m/s^2 NED, for the velocity's EPOCH column: the INS's over the history's
+        +/- h (:data:`LEVER_RATE_HALF_WIDTH_S`, an epoch waits for it, :class:`HeldEpochs`)
+        and the lever arm's centripetal C (w x (w x l)); and the 1-sigma of the rest, m/s^2,
+        taken as white: the lever arm's C (dw x l), from the rate's change between the
+        means of the two halves, and the accelerometers' noise over 2 h, sqrt(q_a / 2 h).
+        A 3 m mast rocking on bumps moves its top at metres per second squared, but dw over
+        0.05 s is noisy, 0.15 m/s^2 on a 2 m mast (2 q_g / h^3 |l|^2, vibration in) with
+        outliers past 0.4: in the column, the pull-away's changes of acceleration it
+        seemed to show told the epoch time from a velocity error (0.3 m off, NAVIGATING,
+        6 cm stated). (The fixes' velocity differences were noisier still: 0.4 m/s^2.)"""
+        if self._epoch_sigma_s() == 0.0:
+            return None
+        hist, h, tun = self._hist, LEVER_RATE_HALF_WIDTH_S, self._tuning
+        assert hist is not None and tun is not None
+        before, after = hist.at(t_e - h), hist.at(t_e + h)
+        if before is None or after is None:
+            return None
+        a_imu = (after[ROW_V] - before[ROW_V]) / (after[ROW_T] - before[ROW_T])
+        l_b = self._l_imu_ant_b
+        half = 0.5 * h
+        w_dot = (hist.mean_rate(t_e + half, half) - hist.mean_rate(t_e - half, half)) / h
+        a_n, a_e, _ = (c_e @ cross3(w_dot, l_b)).tolist()
+        sigma_white = math.sqrt(a_n * a_n + a_e * a_e + tun.q_accel_m2_per_s3 / (2.0 * h))
+        return a_imu + c_e @ cross3(w_e, cross3(w_e, l_b)), sigma_white
+
+    def _velocity_timing_sigma_mps(self, a_ant: tuple[Array, float] | None) -> float:
+        """1-sigma of a GNSS velocity's timing error, m/s: the antenna's horizontal
+        acceleration ``a_ant`` (:meth:`_antenna_accel_ned`, both parts) times the epochs'
+        time sigma (0 on a UTC host). For a velocity used outside the filter."""
+        if a_ant is None:
+            return 0.0
+        a_n, a_e, _ = a_ant[0].tolist()
+        return math.hypot(a_n, a_e, a_ant[1]) * self._epoch_sigma_s()
 
     def _update_motion_flags(self) -> None:
         """Stationary and reversing from the reference-point body velocity (hysteresis)."""
@@ -1695,7 +1732,23 @@ class EkfEngine:
             gnss_glitch=self._t_s is not None and self._track.doubtful(self._t_s),
             heading_within_accuracy=self._heading_sigma_rad()
             <= self.cfg.navigating_heading_sigma_deg * DEG_TO_RAD,
+            position_within_accuracy=self._epoch_share_m() <= NAVIGATING_POSITION_SHARE_M,
         )
+
+    def _epoch_share_m(self) -> float:
+        """The epoch time's share of the position's horizontal 1-sigma, m: the speed times
+        the EPOCH state's 1-sigma (0 on a UTC host). After a free-running host's alignment
+        it is the speed times the receiver latency's error; on a pull-away the epoch time
+        and a velocity error look alike until the acceleration changes (0.1 s at 2.2 m/s,
+        0.2 m off with 10 cm in P: NAVIGATING said 1-2 cm)."""
+        p, ins = self._p, self._ins
+        if p is None or ins is None:
+            return 0.0
+        var_t = p.item(EPOCH, EPOCH)
+        if var_t == 0.0:
+            return 0.0
+        vn, ve, _ = ins.v_ned_mps
+        return math.hypot(vn, ve) * math.sqrt(var_t)
 
     def _heading_sigma_rad(self) -> float:
         """The heading's 1-sigma, rad: P's (:meth:`_p_heading_sigma_rad`) and what the

@@ -447,12 +447,15 @@ def fuse_velocity(
     l_ant_b: Array,
     v_ant_meas_ne_mps: Array,
     sigma_mps: float,
+    a_ant_ned_mps2: Array | None = None,
 ) -> Measurement:
     """Antenna horizontal velocity (north, east) from SOG/COG: v_ant = v + C (w x l).
 
     NMEA RMC/VTG carry no vertical velocity; the vertical channel is observed through height.
-    dv_ant = dv - [C (w x l)]x phi + C [l]x dbg (the rate error is -dbg). ``v_ant_meas_ne_mps``
-    shape (2,).
+    dv_ant = dv - [C (w x l)]x phi + C [l]x dbg (the rate error is -dbg) - a_ant dtau: the
+    velocity of the epoch's time as placed, the antenna's acceleration ``a_ant_ned_mps2``
+    times its error back (as :func:`fuse_position`'s; None: no EPOCH column).
+    ``v_ant_meas_ne_mps`` shape (2,).
     """
     c9 = to_mat9(c_bn)
     c0, c1, c2, c3, c4, c5, c6, c7, c8 = c9
@@ -466,6 +469,9 @@ def fuse_velocity(
         (c4 * lz - c5 * ly, c5 * lx - c3 * lz, c3 * ly - c4 * lx),
         (c7 * lz - c8 * ly, c8 * lx - c6 * lz, c6 * ly - c7 * lx),
     )
+    if a_ant_ned_mps2 is not None:
+        an, ae, ad = a_ant_ned_mps2.tolist()
+        h[:, EPOCH] = (-an, -ae, -ad)
     vn, ve, _ = v_ned_mps.tolist()
     mn, me = v_ant_meas_ne_mps.tolist()
     z = np.array((mn - (vn + vl_n), me - (ve + vl_e)))
