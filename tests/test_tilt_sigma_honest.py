@@ -754,12 +754,16 @@ def test_a_free_running_host_clock_s_epoch_error_is_learnt_not_taken_for_pitch(
 
 
 @pytest.mark.parametrize(
-    ("seed", "latency_s", "navigating_s"),
-    [(626, 0.068, 5.0), (627, 0.15, 15.0)],
-    ids=["18-ms-off", "128-ms-off"],
+    ("base", "seed", "gnss_table", "navigating_s"),
+    [
+        ("slope-start", 626, {"latency_s": 0.068}, 5.0),
+        ("slope-start", 627, {"latency_s": 0.15}, 15.0),
+        ("short", 632, {"hdt": True}, 5.0),
+    ],
+    ids=["18-ms-off", "128-ms-off", "parked-on-hdt"],
 )
 def test_a_free_running_host_s_pull_away_is_no_epoch_time_on_the_bus(
-    tmp_path: Path, seed: int, latency_s: float, navigating_s: float
+    tmp_path: Path, base: str, seed: int, gnss_table: dict[str, object], navigating_s: float
 ) -> None:
     """The EKF's cold start on a slope, the vehicle pulling away as it aligns, on a host
     clock 30 s off UTC: the epochs are placed at arrival less the default 50 ms, 18 ms
@@ -772,8 +776,11 @@ def test_a_free_running_host_s_pull_away_is_no_epoch_time_on_the_bus(
     the speed times the epoch time's sigma to be within 5 cm: every position within
     NAVIGATING's bound, and NAVIGATING 2 s after the alignment (13 s with the 128 ms
     error: at 3 m/s a straight line tells the epoch time only slowly), through `navgw
-    replay`."""
-    table = {"base": "slope-start", "gnss": {"host_clock_offset_s": 30.0, "latency_s": latency_s}}
+    replay`. Aligned on HDT and parked (`short` seed 632), the INS's own velocity and
+    acceleration noise in the EPOCH columns, shared with the residuals, had taken the
+    epoch time to -108 ms with 14 stated before the pull-away (0.20 m off): parked, an
+    epoch time moves nothing and is left alone."""
+    table = {"base": base, "gnss": {"host_clock_offset_s": 30.0, **gnss_table}}
     scenario = scenario_from_toml(table)
     run = generate(scenario, tmp_path, seed=seed)
     out = tmp_path / "out.log"
@@ -781,7 +788,7 @@ def test_a_free_running_host_s_pull_away_is_no_epoch_time_on_the_bus(
     replay(run.imu_log, run.gnss_log, out, GatewayConfig(vehicle=vehicle).with_engine(Engine.EKF))
     truth = Truth.load(run.truth_file)
     checked, beyond = position_beyond_mode(out, truth)
-    assert checked > 8_000 and beyond == []
+    assert checked > 6_000 and beyond == []
     assert tilt_beyond_stated(out, truth)[1] == []
     modes = status_modes(out)
     aligned = next(t for t, mode in modes if mode not in (Mode.INITIALISING, Mode.ALIGNING))

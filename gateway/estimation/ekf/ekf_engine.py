@@ -45,6 +45,7 @@ import math
 from collections import deque
 from collections.abc import Callable
 from dataclasses import dataclass, replace
+from typing import NamedTuple
 
 import numpy as np
 import numpy.typing as npt
@@ -164,6 +165,18 @@ FIX_STILL_HOLD_S = 1.5
 EARTH_RATE_RPS = 7.292115e-5
 #: Below this GNSS speed the receiver's course is unreliable (held): direction unknown.
 COG_RELIABLE_SPEED_MPS = 0.1
+#: How many times its noise the antenna's smooth horizontal acceleration must be for the
+#: velocity's EPOCH column (:meth:`EkfEngine._antenna_accel_ned`); below, it is white.
+ACCEL_COLUMN_SNR = 3.0
+
+
+class AntennaAccel(NamedTuple):
+    """The antenna's acceleration at an epoch (:meth:`EkfEngine._antenna_accel_ned`)."""
+
+    column: Array | None  # smooth part, m/s^2 NED, for the velocity's EPOCH column
+    sigma_white_mps2: float  # 1-sigma of the rest per horizontal axis, taken as white
+
+
 #: The EPOCH state's walk, s^2/s: on a free-running host the epochs are placed by the least
 #: receive delay over the last ``DELAY_WINDOW_S``, which the clock's drift (50 ppm: 3 ms
 #: over that window) and the serial line's scheduling move.
@@ -663,14 +676,17 @@ class EkfEngine:
             elif self._track.away:
                 self._reject_position(t_e, self._track.away_text(t_e))
             else:
-                measurements.append(self._fuse_fix_position(row, c_e, w_e, p_ant))
+                measurements.append(
+                    self._fuse_fix_position(row, c_e, w_e, p_ant, self._epoch_moves(fix))
+                )
         vel = self._gnss_velocity(fix)
         course = None
         if vel is not None:
-            a_ant = self._antenna_accel_ned(t_e, c_e, w_e)
+            a_ant = self._antenna_accel_ned(t_e, c_e, w_e) if self._epoch_moves(fix) else None
             a_col, sigma_v = None, math.hypot(vel[1], sig_lever)
             if a_ant is not None:  # its smooth part in the EPOCH column, the rest white
-                a_col, sigma_v = a_ant[0], math.hypot(sigma_v, a_ant[1] * self._epoch_sigma_s())
+                a_col = a_ant.column
+                sigma_v = math.hypot(sigma_v, a_ant.sigma_white_mps2 * self._epoch_sigma_s())
             measurements.append(
                 fuse_velocity(row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], sigma_v, a_col)
             )
@@ -1429,10 +1445,11 @@ class EkfEngine:
         m[5, BG] = (c_e @ skew(self._l_imu_b))[2]
         m[0:3, ATT] = skew(c_l) + age_s * m[3:6, ATT]
         m[0:3, BG] = age_s * m[3:6, BG]
-        m[0:3, EPOCH] = v_ant
         a_ant = self._antenna_accel_ned(t_e, c_e, w_e)
-        if a_ant is not None:  # (and the velocity a_ant dtau, its horizontal from the fix)
-            m[3:5, EPOCH] = a_ant[0][:2]
+        if self._epoch_moves(fix):
+            m[0:3, EPOCH] = v_ant
+            if a_ant is not None and a_ant.column is not None:  # (the velocity's a_ant dtau)
+                m[3:5, EPOCH] = a_ant.column[:2]
         pv = slice(POS.start, VEL.stop)
         cross = m @ p
         p[pv, :] = cross
@@ -1465,9 +1482,12 @@ class EkfEngine:
         t_rej = self._t_velocity_rejected_s
         return t_rej is not None and t_e - t_rej <= DRIFT_WINDOW_S
 
-    def _fuse_fix_position(self, row: Array, c_e: Array, w_e: Array, p_ant: Array) -> Measurement:
+    def _fuse_fix_position(
+        self, row: Array, c_e: Array, w_e: Array, p_ant: Array, moves: bool
+    ) -> Measurement:
         """The fix's antenna position as a measurement of the state at its epoch (``row``,
-        body rate ``w_e``)."""
+        body rate ``w_e``); the antenna's velocity for its EPOCH column if the epoch time
+        ``moves`` it (:meth:`_epoch_moves`)."""
         l_b = self._l_imu_ant_b
         return fuse_position(
             row[ROW_P],
@@ -1476,7 +1496,20 @@ class EkfEngine:
             p_ant,
             np.sqrt(self._fix_var_white_m2),
             self._fix_err_ned_m,
-            row[ROW_V] + c_e @ cross3(w_e, l_b),
+            row[ROW_V] + c_e @ cross3(w_e, l_b) if moves else np.zeros(3),
+        )
+
+    def _epoch_moves(self, fix: GnssFix) -> bool:
+        """Does an epoch-time error move this fix: has the receiver a course (a speed from
+        ``COG_RELIABLE_SPEED_MPS``)? Parked, the INS's velocity and acceleration at the
+        epoch are their own noise, which the residual shares (the INS's position and
+        velocity there): as EPOCH columns they took the epoch time to -108 ms with 14
+        stated (18 true) in 40 s parked, aligned on HDT, and the pull-away's positions
+        went 0.2 m off NAVIGATING (field seed 632, `host-clock-free+hdt`)."""
+        return (
+            fix.vel_ne_mps is not None
+            and fix.sog_mps is not None
+            and (fix.sog_mps >= COG_RELIABLE_SPEED_MPS)
         )
 
     def _epoch_sigma_s(self) -> float:
@@ -1533,19 +1566,24 @@ class EkfEngine:
             return np.zeros(2), math.hypot(sigma, fix.sog_mps)
         return np.array(vel), sigma
 
-    def _antenna_accel_ned(self, t_e: float, c_e: Array, w_e: Array) -> tuple[Array, float] | None:
+    def _antenna_accel_ned(self, t_e: float, c_e: Array, w_e: Array) -> AntennaAccel | None:
         """The antenna's acceleration at ``t_e`` while the epochs' times are uncertain (None
-        on a UTC host): what a velocity placed dtau off is off by, a_ant dtau. Its smooth
-        part, m/s^2 NED, for the velocity's EPOCH column: the INS's over the history's
-        +/- h (:data:`LEVER_RATE_HALF_WIDTH_S`, an epoch waits for it, :class:`HeldEpochs`)
-        and the lever arm's centripetal C (w x (w x l)); and the 1-sigma of the rest, m/s^2,
-        taken as white: the lever arm's C (dw x l), from the rate's change between the
-        means of the two halves, and the accelerometers' noise over 2 h, sqrt(q_a / 2 h).
-        A 3 m mast rocking on bumps moves its top at metres per second squared, but dw over
-        0.05 s is noisy, 0.15 m/s^2 on a 2 m mast (2 q_g / h^3 |l|^2, vibration in) with
-        outliers past 0.4: in the column, the pull-away's changes of acceleration it
-        seemed to show told the epoch time from a velocity error (0.3 m off, NAVIGATING,
-        6 cm stated). (The fixes' velocity differences were noisier still: 0.4 m/s^2.)"""
+        on a UTC host): what a velocity placed dtau off is off by, a_ant dtau.
+
+        Its smooth part, m/s^2 NED: the INS's over the history's +/- h
+        (:data:`LEVER_RATE_HALF_WIDTH_S`, an epoch waits for it, :class:`HeldEpochs`) and
+        the lever arm's centripetal C (w x (w x l)); the EPOCH column while its horizontal
+        is :data:`ACCEL_COLUMN_SNR` times its noise, sqrt(q_a / 2 h), or more. The rest is
+        white: that noise, the lever arm's C (dw x l) from the rate's change between the
+        means of the two halves, and a smooth part too small for the column. A 3 m mast
+        rocking on bumps moves its top at metres per second squared, but dw over 0.05 s is
+        noisy, 0.15 m/s^2 on a 2 m mast (2 q_g / h^3 |l|^2, vibration in) with outliers
+        past 0.4: in the column, the pull-away's changes of acceleration it seemed to show
+        told the epoch time from a velocity error (0.3 m off, NAVIGATING, 6 cm stated).
+        Parked, the INS's acceleration is its noise, which shares the velocity at ``t_e``
+        (the INS's own, in the residual): in the column it took the epoch time to -108 ms
+        with 14 stated (18 true) in 40 s parked. (The fixes' velocity differences were
+        noisier still: 0.4 m/s^2.)"""
         if self._epoch_sigma_s() == 0.0:
             return None
         hist, h, tun = self._hist, LEVER_RATE_HALF_WIDTH_S, self._tuning
@@ -1557,18 +1595,23 @@ class EkfEngine:
         l_b = self._l_imu_ant_b
         half = 0.5 * h
         w_dot = (hist.mean_rate(t_e + half, half) - hist.mean_rate(t_e - half, half)) / h
-        a_n, a_e, _ = (c_e @ cross3(w_dot, l_b)).tolist()
-        sigma_white = math.sqrt(a_n * a_n + a_e * a_e + tun.q_accel_m2_per_s3 / (2.0 * h))
-        return a_imu + c_e @ cross3(w_e, cross3(w_e, l_b)), sigma_white
+        r_n, r_e, _ = (c_e @ cross3(w_dot, l_b)).tolist()
+        var_noise = tun.q_accel_m2_per_s3 / (2.0 * h)
+        smooth = a_imu + c_e @ cross3(w_e, cross3(w_e, l_b))
+        s_n, s_e, _ = smooth.tolist()
+        var_smooth = s_n * s_n + s_e * s_e
+        if var_smooth >= ACCEL_COLUMN_SNR**2 * var_noise:
+            return AntennaAccel(smooth, math.sqrt(r_n * r_n + r_e * r_e + var_noise))
+        return AntennaAccel(None, math.sqrt(r_n * r_n + r_e * r_e + var_noise + var_smooth))
 
-    def _velocity_timing_sigma_mps(self, a_ant: tuple[Array, float] | None) -> float:
+    def _velocity_timing_sigma_mps(self, a_ant: AntennaAccel | None) -> float:
         """1-sigma of a GNSS velocity's timing error, m/s: the antenna's horizontal
         acceleration ``a_ant`` (:meth:`_antenna_accel_ned`, both parts) times the epochs'
         time sigma (0 on a UTC host). For a velocity used outside the filter."""
         if a_ant is None:
             return 0.0
-        a_n, a_e, _ = a_ant[0].tolist()
-        return math.hypot(a_n, a_e, a_ant[1]) * self._epoch_sigma_s()
+        a_n, a_e = (0.0, 0.0) if a_ant.column is None else a_ant.column[:2].tolist()
+        return math.hypot(a_n, a_e, a_ant.sigma_white_mps2) * self._epoch_sigma_s()
 
     def _update_motion_flags(self) -> None:
         """Stationary and reversing from the reference-point body velocity (hysteresis)."""
