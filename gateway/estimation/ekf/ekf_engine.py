@@ -1445,9 +1445,9 @@ class EkfEngine:
         m[5, BG] = (c_e @ skew(self._l_imu_b))[2]
         m[0:3, ATT] = skew(c_l) + age_s * m[3:6, ATT]
         m[0:3, BG] = age_s * m[3:6, BG]
-        a_ant = self._antenna_accel_ned(t_e, c_e, w_e)
         if self._epoch_moves(fix):
             m[0:3, EPOCH] = v_ant
+            a_ant = self._antenna_accel_ned(t_e, c_e, w_e)
             if a_ant is not None and a_ant.column is not None:  # (the velocity's a_ant dtau)
                 m[3:5, EPOCH] = a_ant.column[:2]
         pv = slice(POS.start, VEL.stop)
@@ -1506,11 +1506,8 @@ class EkfEngine:
         velocity there): as EPOCH columns they took the epoch time to -108 ms with 14
         stated (18 true) in 40 s parked, aligned on HDT, and the pull-away's positions
         went 0.2 m off NAVIGATING (field seed 632, `host-clock-free+hdt`)."""
-        return (
-            fix.vel_ne_mps is not None
-            and fix.sog_mps is not None
-            and (fix.sog_mps >= COG_RELIABLE_SPEED_MPS)
-        )
+        sog = fix.sog_mps
+        return fix.vel_ne_mps is not None and sog is not None and sog >= COG_RELIABLE_SPEED_MPS
 
     def _epoch_sigma_s(self) -> float:
         """1-sigma of the epoch times, s: the EPOCH state's once the filter runs (what it has
@@ -1580,10 +1577,10 @@ class EkfEngine:
         noisy, 0.15 m/s^2 on a 2 m mast (2 q_g / h^3 |l|^2, vibration in) with outliers
         past 0.4: in the column, the pull-away's changes of acceleration it seemed to show
         told the epoch time from a velocity error (0.3 m off, NAVIGATING, 6 cm stated).
-        Parked, the INS's acceleration is its noise, which shares the velocity at ``t_e``
-        (the INS's own, in the residual): in the column it took the epoch time to -108 ms
-        with 14 stated (18 true) in 40 s parked. (The fixes' velocity differences were
-        noisier still: 0.4 m/s^2.)"""
+        Under its noise it is noise, which shares the INS's velocity at ``t_e`` with the
+        residual: in the column it moved the epoch time at a steady speed as it did parked
+        (:meth:`_epoch_moves`). (The fixes' velocity differences were noisier still: 0.4
+        m/s^2.)"""
         if self._epoch_sigma_s() == 0.0:
             return None
         hist, h, tun = self._hist, LEVER_RATE_HALF_WIDTH_S, self._tuning
