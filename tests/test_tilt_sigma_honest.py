@@ -20,7 +20,13 @@ import pytest
 
 from drivers.imu_can import sample_period_s
 from drivers.samples import GnssFix, ImuSample
-from gateway.config.gateway_config import Engine, GatewayConfig, VehicleSection, load_config
+from gateway.config.gateway_config import (
+    Engine,
+    GatewayConfig,
+    GnssSection,
+    VehicleSection,
+    load_config,
+)
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.solution import LearnedState, Mode, Solution
 from gateway.fusion.engines import make_engine
@@ -42,6 +48,7 @@ from tests.kinematics import (
 from tests.n2k_check import (
     attitude_errors_deg,
     decode_log,
+    heading_beyond_navigating,
     position_beyond_mode,
     stated_tilts,
     status_modes,
@@ -794,6 +801,39 @@ def test_a_free_running_host_s_pull_away_is_no_epoch_time_on_the_bus(
     aligned = next(t for t, mode in modes if mode not in (Mode.INITIALISING, Mode.ALIGNING))
     navigating = next(t for t, mode in modes if mode == Mode.NAVIGATING)
     assert navigating - aligned < navigating_s, navigating - aligned
+
+
+def test_the_observer_on_a_free_running_host_states_the_epoch_time_it_cannot_learn(
+    tmp_path: Path,
+) -> None:
+    """A host clock 30 s off UTC and a receiver 120 ms late (148 to its last sentence,
+    against the default `[gnss] receiver_latency_s` of 50 ms): every epoch is placed 98 ms
+    late. The observer has no state for it: the fixes went 0.20 m behind the vehicle and
+    the heading 1-2 deg off after turns, NAVIGATING (`short` seed 635: 2,397 positions and
+    216 headings beyond). It now says DEGRADED while the speed times the epochs' time sigma
+    (`receiver_latency_sigma_s`, 0.1 s unless measured) is beyond 5 cm: nothing beyond.
+    With the latency measured (148 ms, 10 ms 1-sigma) it navigates again, within its
+    accuracy: NAVIGATING most of the drive, nothing beyond."""
+    table = {"base": "short", "gnss": {"host_clock_offset_s": 30.0, "latency_s": 0.12}}
+    scenario = scenario_from_toml(table)
+    run = generate(scenario, tmp_path, seed=635)
+    truth = Truth.load(run.truth_file)
+    vehicle = gateway_config(scenario, receiver_latency_s=0.0).vehicle
+    shares = []
+    for name, gnss in (
+        ("default", GnssSection()),
+        ("measured", GnssSection(receiver_latency_s=0.148, receiver_latency_sigma_s=0.01)),
+    ):
+        out = tmp_path / f"{name}.log"
+        config = GatewayConfig(vehicle=vehicle, gnss=gnss).with_engine(Engine.OBSERVER)
+        replay(run.imu_log, run.gnss_log, out, config)
+        beyond = position_beyond_mode(out, truth)[1]
+        assert beyond == [], (name, beyond[:3])
+        assert heading_beyond_navigating(out, truth)[1] == [], name
+        assert tilt_beyond_stated(out, truth)[1] == [], name
+        modes = [mode for _, mode in status_modes(out)]
+        shares.append(modes.count(Mode.NAVIGATING) / len(modes))
+    assert shares[0] < 0.3 < 0.7 < shares[1], shares
 
 
 def test_a_noisier_unit_s_accel_bias_unlearnt_without_a_heading_is_within_the_stated() -> None:

@@ -102,7 +102,7 @@ class MountingEstimator:
     def __init__(self, config: CalibrationConfig | None = None) -> None:
         self.config = cfg = config or CalibrationConfig()
         obs = cfg.observer
-        self.clock = EpochClock(obs.epoch_time, obs.receiver_latency_s)
+        self.clock = EpochClock.of(obs)
         self.intervals = ImuIntervals()
         self.turns = TurnAxisFit(cfg.gyro_window_s)
         self.work = WorkWindows(obs.antenna_lever_arm_m, obs.imu_lever_arm_m, cfg.work_window_s)

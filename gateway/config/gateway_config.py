@@ -25,7 +25,7 @@ from gateway.config.config_schema import (
     source_comments,
 )
 from gateway.estimation.ekf.ekf_config import EkfConfig
-from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.epoch_clock import RECEIVE_EPOCH_SIGMA_S, EpochTime
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.isobus.address_claim import DeviceClass, NameFunction
 from gateway.isobus.device_info import (
@@ -152,6 +152,14 @@ class GnssSection:
         metadata=_doc(
             "least delay from an epoch to the receipt of its last sentence (receive mode)",
             **in_range(0.0, 1.0),
+        ),
+    )
+    receiver_latency_sigma_s: float = field(
+        default=RECEIVE_EPOCH_SIGMA_S,
+        metadata=_doc(
+            "1-sigma of receiver_latency_s (receive mode); the default: not measured. The"
+            " observer says DEGRADED while speed x this is beyond 5 cm; the EKF learns it",
+            **in_range(0.001, 0.5),
         ),
     )
 
@@ -355,6 +363,7 @@ _SHARED = {
     "imu_mounting_sigma_deg": "vehicle",
     "epoch_time": "gnss",
     "receiver_latency_s": "gnss",
+    "receiver_latency_sigma_s": "gnss",
     "gyro_arw_deg_per_sqrt_h": "imu",
     "accel_vrw_mps_per_sqrt_h": "imu",
     "gyro_bias_stability_dps": "imu",

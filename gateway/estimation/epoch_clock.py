@@ -31,6 +31,7 @@ from __future__ import annotations
 import logging
 from collections import deque
 from enum import Enum
+from typing import Protocol
 
 from drivers.log_limit import LogLimiter
 from drivers.samples import GnssFix
@@ -70,12 +71,36 @@ class EpochTime(Enum):
     RECEIVE = "receive"
 
 
+class EpochSettings(Protocol):
+    """The GNSS timing settings a clock is made of ([gnss], or an engine's config)."""
+
+    @property
+    def epoch_time(self) -> EpochTime: ...
+    @property
+    def receiver_latency_s(self) -> float: ...
+    @property
+    def receiver_latency_sigma_s(self) -> float: ...
+
+
 class EpochClock:
     """Epoch instant of each GNSS fix on the host clock; fed every fix in arrival order."""
 
-    def __init__(self, mode: EpochTime, receiver_latency_s: float) -> None:
+    @classmethod
+    def of(cls, settings: EpochSettings) -> EpochClock:
+        """The clock of ``settings``' timing: every caller's one way to make it."""
+        return cls(
+            settings.epoch_time, settings.receiver_latency_s, settings.receiver_latency_sigma_s
+        )
+
+    def __init__(
+        self,
+        mode: EpochTime,
+        receiver_latency_s: float,
+        receiver_latency_sigma_s: float = RECEIVE_EPOCH_SIGMA_S,
+    ) -> None:
         self.mode = mode
         self.receiver_latency_s = receiver_latency_s
+        self.receiver_latency_sigma_s = receiver_latency_sigma_s
         self._least = SlidingMin(DELAY_WINDOW_S)  # every receive delay
         self._least_possible = SlidingMin(DELAY_WINDOW_S)  # those a synced host can have
         self._last_epoch_s: float | None = None  # the latest epoch placed
@@ -92,8 +117,10 @@ class EpochClock:
     @property
     def epoch_sigma_s(self) -> float:
         """1-sigma of the epoch times placed, s: 0 on a host that follows UTC (the receiver's
-        UTC is exact), :data:`RECEIVE_EPOCH_SIGMA_S` on a free-running one or before the date."""
-        return 0.0 if self.host_follows_utc else RECEIVE_EPOCH_SIGMA_S
+        UTC is exact), the receiver latency's (``receiver_latency_sigma_s``, by default
+        :data:`RECEIVE_EPOCH_SIGMA_S`: not measured) on a free-running one or before the
+        date."""
+        return 0.0 if self.host_follows_utc else self.receiver_latency_sigma_s
 
     def _follows_utc(self, least_possible_s: float | None) -> bool:
         if self.mode is not EpochTime.AUTO:

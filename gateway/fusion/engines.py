@@ -26,4 +26,4 @@ def make_engine(
 
 def epoch_clock(config: GatewayConfig) -> EpochClock:
     """The epoch clock of ``config``'s GNSS timing."""
-    return EpochClock(config.gnss.epoch_time, config.gnss.receiver_latency_s)
+    return EpochClock.of(config.gnss)

@@ -14,7 +14,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 from drivers.units import DEG_TO_RAD, MG_MPS2, SQRT_SECONDS_PER_HOUR
-from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.epoch_clock import RECEIVE_EPOCH_SIGMA_S, EpochTime
 from gateway.estimation.observer.observer_config import Vec3Tuple
 
 #: Allan-deviation floor of a first-order Gauss-Markov process / its sigma (at tau = 1.89 T):
@@ -54,6 +54,7 @@ class EkfConfig:
     # --- GNSS timing ---
     epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock
     receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
+    receiver_latency_sigma_s: float = RECEIVE_EPOCH_SIGMA_S  # its 1-sigma (not measured)
     gnss_timeout_s: float = 1.5  # no accepted fix for this long (receive time): COASTING
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output
     # a dead-reckoned position's horizontal 1-sigma: COASTING up to coast_sigma_m (what DGNSS

@@ -230,7 +230,7 @@ class EkfEngine:
         self._rest_turn = (0.0, 0.0)
         self._pending_turn_rad = 0.0  # turned in the rest spans not checked yet
         self._t_course_s: float | None = None  # the last epoch with a course
-        self.clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self.clock = clock or EpochClock.of(cfg)
         self._l_ant_b = np.array(cfg.antenna_lever_arm_m, dtype=float)
         self._l_ant_m = float(np.linalg.norm(self._l_ant_b))
         self._l_imu_b = np.array(cfg.imu_lever_arm_m, dtype=float)

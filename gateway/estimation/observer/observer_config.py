@@ -9,7 +9,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from gateway.estimation.epoch_clock import EpochTime
+from gateway.estimation.epoch_clock import RECEIVE_EPOCH_SIGMA_S, EpochTime
 
 Vec3Tuple = tuple[float, float, float]
 
@@ -42,6 +42,7 @@ class ObserverConfig:
     # --- GNSS timing ---
     epoch_time: EpochTime = EpochTime.AUTO  # how epochs are placed on the host clock
     receiver_latency_s: float = 0.0  # least delay from an epoch to its last sentence's receipt
+    receiver_latency_sigma_s: float = RECEIVE_EPOCH_SIGMA_S  # its 1-sigma (not measured)
     gnss_timeout_s: float = 1.5  # no usable velocity for this long (receive time): COASTING
     max_gnss_interval_s: float = 1.2  # epochs further apart are not differenced (1 Hz fits)
     max_coast_s: float = 30.0  # beyond this, coasting position is no longer output

@@ -106,6 +106,7 @@ from gateway.estimation.observer.tereshkov import TereshkovObserver
 from gateway.estimation.observer.tilt_loop import TiltLoop
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
+    NAVIGATING_POSITION_SHARE_M,
     LearnedState,
     Mode,
     Solution,
@@ -113,6 +114,9 @@ from gateway.estimation.solution import (
     navigation_mode,
 )
 
+#: Interval of the log line that the epoch time's share holds NAVIGATING back, s: a standing
+#: condition of the installation (a free-running host clock), not an event.
+EPOCH_SHARE_LOG_S = 600.0
 #: History kept for late GNSS epochs, samples (5 s at 204.8 Hz): latency + one interval.
 HISTORY_LEN = 1024
 #: Tilt alignment accepts a non-quiet window after this long (vehicle never still/straight).
@@ -196,7 +200,7 @@ class ObserverEngine:
         self._l_ant_f = tuple(float(x) for x in cfg.antenna_lever_arm_m)
         self._heading = HeadingChannel(cfg)
         self._hdt_screen = HdtScreen(cfg)  # HDT's jumps against the gyro's turn
-        self.clock = clock or EpochClock(cfg.epoch_time, cfg.receiver_latency_s)
+        self.clock = clock or EpochClock.of(cfg)
         self._observer: TereshkovObserver | None = None
         # tilt alignment
         self._align_sum = [0.0] * 6  # sums of w_b and f_b over the window
@@ -312,6 +316,7 @@ class ObserverEngine:
         self._imu = ImuHealth(cfg.imu_fault_s)  # timing, alarm, saturation, FAULT
         self.counters = ObserverCounters()
         self._log = LogLimiter(log)
+        self._epoch_log = LogLimiter(log, EPOCH_SHARE_LOG_S)  # (a standing condition)
         self._track = GnssTrack()  # the receiver's own track: glitch or engine off?
         self._seed: LearnedState | None = None  # what a warm start gave (:meth:`seed`)
         # the x/y accelerometer biases from a filter instead of eq. (12), if configured
@@ -2088,7 +2093,32 @@ class ObserverEngine:
             heading_within_accuracy=self._t_s is not None
             and self._heading.sigma_psi_at(self._t_s)
             <= self.cfg.navigating_heading_sigma_deg * DEG_TO_RAD,
+            position_within_accuracy=self._epoch_share_m() <= NAVIGATING_POSITION_SHARE_M,
         )
+
+    def _epoch_share_m(self) -> float:
+        """The epoch time's share of the position's horizontal 1-sigma, m: the speed times
+        the epochs' time 1-sigma (the clock's: 0 on a UTC host, `[gnss]
+        receiver_latency_sigma_s` on a free-running one). The observer has no state for it:
+        a receiver 68 ms later than the configured latency put every fix 0.2 m behind the
+        vehicle at 3 m/s and the heading 1.8 deg off after turns, NAVIGATING (field seed
+        635, free host, 100 ms receiver). Logged when it holds NAVIGATING back."""
+        sigma_s = self.clock.epoch_sigma_s
+        if sigma_s == 0.0:
+            return 0.0
+        vn, ve, _ = self._v_ned_mps
+        share = math.hypot(vn, ve) * sigma_s
+        if share > NAVIGATING_POSITION_SHARE_M and self._t_s is not None:
+            self._epoch_log.warning(
+                self._t_s,
+                f"GNSS epochs placed by their receive time (the host clock does not follow "
+                f"UTC), known to {sigma_s * 1000:.0f} ms ([gnss] receiver_latency_sigma_s): "
+                f"at {math.hypot(vn, ve):.1f} m/s beyond RTK class, DEGRADED; sync the host "
+                "clock (NTP, PPS, gpsd), measure receiver_latency_s and set its sigma, or "
+                "run the EKF (it learns the error)",
+                "epoch share",
+            )
+        return share
 
     def _control_left_s(self, t_s: float) -> float:
         """What is left at ``t_s`` of the period the last epoch's control rates are for, s."""
