@@ -117,6 +117,10 @@ from gateway.estimation.solution import (
 #: Interval of the log line that the epoch time's share holds NAVIGATING back, s: a standing
 #: condition of the installation (a free-running host clock), not an event.
 EPOCH_SHARE_LOG_S = 600.0
+#: How long the epoch time's share holds NAVIGATING back after the speed let it go, s: what
+#: the turns put into the heading (its courses' w dtau) and the tilt (a dtau in the tilt
+#: loop's velocities) decays over several of the loops' time constants (4-16 s).
+EPOCH_SHARE_HOLD_S = 60.0
 #: History kept for late GNSS epochs, samples (5 s at 204.8 Hz): latency + one interval.
 HISTORY_LEN = 1024
 #: Tilt alignment accepts a non-quiet window after this long (vehicle never still/straight).
@@ -317,6 +321,7 @@ class ObserverEngine:
         self.counters = ObserverCounters()
         self._log = LogLimiter(log)
         self._epoch_log = LogLimiter(log, EPOCH_SHARE_LOG_S)  # (a standing condition)
+        self._t_epoch_share_beyond_s: float | None = None  # (_epoch_time_within_accuracy)
         self._track = GnssTrack()  # the receiver's own track: glitch or engine off?
         self._seed: LearnedState | None = None  # what a warm start gave (:meth:`seed`)
         # the x/y accelerometer biases from a filter instead of eq. (12), if configured
@@ -1747,8 +1752,9 @@ class ObserverEngine:
         # 1.4 m/s, it took 2 s to come within 1.7 deg, NAVIGATING (slope-start seed 540).
         psi_e = row[_PSI] - (self._hc_rad - row[_HC])
         ref = self._heading.select_reference(
-            t_e, psi_e, cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary
-        )
+            t_e, psi_e, cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary,
+            self.clock.epoch_sigma_s,
+        )  # fmt: skip
         corr = self._heading.correct(
             t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn, yaw_rate_rps
         )
@@ -2093,32 +2099,38 @@ class ObserverEngine:
             heading_within_accuracy=self._t_s is not None
             and self._heading.sigma_psi_at(self._t_s)
             <= self.cfg.navigating_heading_sigma_deg * DEG_TO_RAD,
-            position_within_accuracy=self._epoch_share_m() <= NAVIGATING_POSITION_SHARE_M,
+            position_within_accuracy=self._epoch_time_within_accuracy(),
         )
 
-    def _epoch_share_m(self) -> float:
-        """The epoch time's share of the position's horizontal 1-sigma, m: the speed times
+    def _epoch_time_within_accuracy(self) -> bool:
+        """Is the epoch time's share of the position's horizontal 1-sigma, the speed times
         the epochs' time 1-sigma (the clock's: 0 on a UTC host, `[gnss]
-        receiver_latency_sigma_s` on a free-running one). The observer has no state for it:
-        a receiver 68 ms later than the configured latency put every fix 0.2 m behind the
-        vehicle at 3 m/s and the heading 1.8 deg off after turns, NAVIGATING (field seed
-        635, free host, 100 ms receiver). Logged when it holds NAVIGATING back."""
-        sigma_s = self.clock.epoch_sigma_s
-        if sigma_s == 0.0:
-            return 0.0
+        receiver_latency_sigma_s` on a free-running one), within
+        :data:`NAVIGATING_POSITION_SHARE_M`, and has it been for
+        :data:`EPOCH_SHARE_HOLD_S`? The observer has no state for it: a receiver 68 ms
+        later than the configured latency put every fix 0.2 m behind the vehicle at 3 m/s
+        and the heading 1.8 deg off after turns, NAVIGATING (field seed 635, free host, 100
+        ms receiver); what the turns left in the heading and the tilt outlasts the speed
+        (stopped, a 150 ms receiver's heading was 1.6 deg off: steep-turns seed 636).
+        Logged when it holds NAVIGATING back."""
+        sigma_s, t = self.clock.epoch_sigma_s, self._t_s
+        if sigma_s == 0.0 or t is None:
+            return True
         vn, ve, _ = self._v_ned_mps
-        share = math.hypot(vn, ve) * sigma_s
-        if share > NAVIGATING_POSITION_SHARE_M and self._t_s is not None:
+        speed = math.hypot(vn, ve)
+        if speed * sigma_s > NAVIGATING_POSITION_SHARE_M:
+            self._t_epoch_share_beyond_s = t
             self._epoch_log.warning(
-                self._t_s,
+                t,
                 f"GNSS epochs placed by their receive time (the host clock does not follow "
                 f"UTC), known to {sigma_s * 1000:.0f} ms ([gnss] receiver_latency_sigma_s): "
-                f"at {math.hypot(vn, ve):.1f} m/s beyond RTK class, DEGRADED; sync the host "
-                "clock (NTP, PPS, gpsd), measure receiver_latency_s and set its sigma, or "
-                "run the EKF (it learns the error)",
+                f"at {speed:.1f} m/s beyond RTK class, DEGRADED; sync the host clock (NTP, "
+                "PPS, gpsd), measure receiver_latency_s and set its sigma, or run the EKF "
+                "(it learns the error)",
                 "epoch share",
             )
-        return share
+        last = self._t_epoch_share_beyond_s
+        return last is None or t - last >= EPOCH_SHARE_HOLD_S
 
     def _control_left_s(self, t_s: float) -> float:
         """What is left at ``t_s`` of the period the last epoch's control rates are for, s."""
