@@ -13,7 +13,9 @@ off: on seed 21, 46 % of the frames beyond 2 sigma and 9 % beyond 3.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from pathlib import Path
+from typing import cast
 
 import numpy as np
 import pytest
@@ -729,6 +731,29 @@ ROUGH_GROUND = {
 }
 
 
+def free_host_replay(
+    out: Path,
+    table: dict[str, object],
+    seed: int,
+    engine: Engine,
+    gnss: Sequence[GnssSection] = (GnssSection(),),
+) -> tuple[list[Path], Truth]:
+    """``table``'s scenario with its host clock 30 s off UTC, simulated into ``out`` and
+    replayed through `navgw replay` by ``engine`` once per ``gnss`` section (the default:
+    `[gnss]` left as it is); the output logs and the truth."""
+    gnss_table = {"host_clock_offset_s": 30.0, **cast(dict[str, object], table.get("gnss", {}))}
+    scenario = scenario_from_toml({**table, "gnss": gnss_table})
+    run = generate(scenario, out, seed=seed)
+    vehicle = gateway_config(scenario, receiver_latency_s=0.0).vehicle
+    logs = []
+    for i, section in enumerate(gnss):
+        log = out / f"out-{i}.log"
+        config = GatewayConfig(vehicle=vehicle, gnss=section).with_engine(engine)
+        replay(run.imu_log, run.gnss_log, log, config)
+        logs.append(log)
+    return logs, Truth.load(run.truth_file)
+
+
 @pytest.mark.parametrize(
     ("seed", "vehicle_table"), [(543, {}), (625, ROUGH_GROUND)], ids=["field", "rough-ground"]
 )
@@ -745,15 +770,10 @@ def test_a_free_running_host_clock_s_epoch_error_is_learnt_not_taken_for_pitch(
     0.17 with 0.08 stated (seed 625: 858 frames beyond). The epoch's error is now a state
     (EPOCH), told from pitch as the speed changes: none beyond, pitch within 0.06 deg on
     the mean after 10 minutes, through `navgw replay`."""
-    table: dict[str, object] = {"base": "field", "gnss": {"host_clock_offset_s": 30.0}}
+    table: dict[str, object] = {"base": "field"}
     if vehicle_table:
         table["vehicle"] = vehicle_table
-    scenario = scenario_from_toml(table)
-    run = generate(scenario, tmp_path, seed=seed)
-    out = tmp_path / "out.log"
-    vehicle = gateway_config(scenario, receiver_latency_s=0.0).vehicle  # [gnss] left default
-    replay(run.imu_log, run.gnss_log, out, GatewayConfig(vehicle=vehicle).with_engine(Engine.EKF))
-    truth = Truth.load(run.truth_file)
+    (out,), truth = free_host_replay(tmp_path, table, seed, Engine.EKF)
     checked, beyond = tilt_beyond_stated(out, truth)
     assert checked > 40_000 and beyond == []
     pitch_deg = attitude_errors_deg(decode_log(out), truth, after_s=600.0)[:, 1]
@@ -787,13 +807,7 @@ def test_a_free_running_host_s_pull_away_is_no_epoch_time_on_the_bus(
     acceleration noise in the EPOCH columns, shared with the residuals, had taken the
     epoch time to -108 ms with 14 stated before the pull-away (0.20 m off): parked, an
     epoch time moves nothing and is left alone."""
-    table = {"base": base, "gnss": {"host_clock_offset_s": 30.0, **gnss_table}}
-    scenario = scenario_from_toml(table)
-    run = generate(scenario, tmp_path, seed=seed)
-    out = tmp_path / "out.log"
-    vehicle = gateway_config(scenario, receiver_latency_s=0.0).vehicle  # [gnss] left default
-    replay(run.imu_log, run.gnss_log, out, GatewayConfig(vehicle=vehicle).with_engine(Engine.EKF))
-    truth = Truth.load(run.truth_file)
+    (out,), truth = free_host_replay(tmp_path, {"base": base, "gnss": gnss_table}, seed, Engine.EKF)
     checked, beyond = position_beyond_mode(out, truth)
     assert checked > 6_000 and beyond == []
     assert tilt_beyond_stated(out, truth)[1] == []
@@ -817,38 +831,24 @@ def test_the_observer_on_a_free_running_host_states_the_epoch_time_it_cannot_lea
     heading outlasts the speed: stopped after them on `steep-turns` (seed 636, a 150 ms
     receiver) 1,362 headings went out 1.6 deg off, NAVIGATING; the courses' sigmas now
     carry w dtau, and the mode holds DEGRADED for a minute after the speed allowed it."""
-    table = {"base": "short", "gnss": {"host_clock_offset_s": 30.0, "latency_s": 0.12}}
-    scenario = scenario_from_toml(table)
-    run = generate(scenario, tmp_path, seed=635)
-    truth = Truth.load(run.truth_file)
-    vehicle = gateway_config(scenario, receiver_latency_s=0.0).vehicle
+    measured = GnssSection(receiver_latency_s=0.148, receiver_latency_sigma_s=0.01)
+    logs, truth = free_host_replay(
+        tmp_path / "short", {"base": "short", "gnss": {"latency_s": 0.12}}, 635,
+        Engine.OBSERVER, (GnssSection(), measured),
+    )  # fmt: skip
+    steep, steep_truth = free_host_replay(
+        tmp_path / "steep", {"base": "steep-turns", "gnss": {"latency_s": 0.15}}, 636,
+        Engine.OBSERVER,
+    )  # fmt: skip
     shares = []
-    for name, gnss in (
-        ("default", GnssSection()),
-        ("measured", GnssSection(receiver_latency_s=0.148, receiver_latency_sigma_s=0.01)),
-    ):
-        out = tmp_path / f"{name}.log"
-        config = GatewayConfig(vehicle=vehicle, gnss=gnss).with_engine(Engine.OBSERVER)
-        replay(run.imu_log, run.gnss_log, out, config)
-        beyond = position_beyond_mode(out, truth)[1]
-        assert beyond == [], (name, beyond[:3])
-        assert heading_beyond_navigating(out, truth)[1] == [], name
-        assert tilt_beyond_stated(out, truth)[1] == [], name
+    for out, run_truth in zip((*logs, *steep), (truth, truth, steep_truth), strict=True):
+        beyond = position_beyond_mode(out, run_truth)[1]
+        assert beyond == [], (out, beyond[:3])
+        assert heading_beyond_navigating(out, run_truth)[1] == [], out
+        assert tilt_beyond_stated(out, run_truth)[1] == [], out
         modes = [mode for _, mode in status_modes(out)]
         shares.append(modes.count(Mode.NAVIGATING) / len(modes))
     assert shares[0] < 0.3 < 0.7 < shares[1], shares
-    table = {"base": "steep-turns", "gnss": {"host_clock_offset_s": 30.0, "latency_s": 0.15}}
-    scenario = scenario_from_toml(table)
-    run = generate(scenario, tmp_path / "steep", seed=636)
-    truth = Truth.load(run.truth_file)
-    vehicle = gateway_config(scenario, receiver_latency_s=0.0).vehicle
-    out = tmp_path / "steep.log"
-    replay(
-        run.imu_log, run.gnss_log, out, GatewayConfig(vehicle=vehicle).with_engine(Engine.OBSERVER)
-    )
-    assert heading_beyond_navigating(out, truth)[1] == []
-    assert position_beyond_mode(out, truth)[1] == []
-    assert tilt_beyond_stated(out, truth)[1] == []
 
 
 def test_a_noisier_unit_s_accel_bias_unlearnt_without_a_heading_is_within_the_stated() -> None:
