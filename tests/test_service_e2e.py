@@ -318,6 +318,7 @@ def test_subprocess_on_udp_multicast_in_real_time(
             "[vehicle]\n" + "".join(f"{k} = {v}\n" for k, v in lever.items())
             + f'[imu]\ninterface = "udp_multicast"\nchannel = "{GROUP}"\n'
             + f'[gnss]\nport = "{pb.device}"\nreceiver_latency_s = 0.065\n'
+            + "receiver_latency_sigma_s = 0.01\n"  # the player's latency, measured
         )  # fmt: skip
         env = {
             **os.environ,

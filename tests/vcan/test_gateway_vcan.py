@@ -139,6 +139,7 @@ def session(vcan0: str, sim_run: Path, tmp_path_factory: pytest.TempPathFactory)
             + f'[imu]\ninterface = "socketcan"\nchannel = "{vcan0}"\n'
             + '[isobus]\ninterface = "socketcan"\nchannel = "vcan1"\n'
             + f'[gnss]\nport = "{player.device}"\nreceiver_latency_s = 0.065\n'
+            + "receiver_latency_sigma_s = 0.01\n"  # the player's latency, measured
         )  # fmt: skip
         dump = record_candump("vcan1", recordings[0])
         dump_inputs = record_candump(vcan0, inputs)
