@@ -2111,19 +2111,21 @@ class ObserverEngine:
         later than the configured latency put every fix 0.2 m behind the vehicle at 3 m/s
         and the heading 1.8 deg off after turns, NAVIGATING (field seed 635, free host, 100
         ms receiver); what the turns left in the heading and the tilt outlasts the speed
-        (stopped, a 150 ms receiver's heading was 1.6 deg off: steep-turns seed 636).
-        Logged when it holds NAVIGATING back."""
+        (stopped, a 150 ms receiver's heading was 1.6 deg off: steep-turns seed 636). Only
+        while GNSS velocities are in use: driving without a fix, no epoch moves anything
+        (and the clock knows no date yet). Logged when it holds NAVIGATING back."""
         sigma_s, t = self.clock.epoch_sigma_s, self._t_s
         if sigma_s == 0.0 or t is None:
             return True
         vn, ve, _ = self._v_ned_mps
         speed = math.hypot(vn, ve)
-        if speed * sigma_s > NAVIGATING_POSITION_SHARE_M:
+        in_use = self._t_vel_rx_s is not None and not self._coasting
+        if in_use and speed * sigma_s > NAVIGATING_POSITION_SHARE_M:
             self._t_epoch_share_beyond_s = t
             self._epoch_log.warning(
                 t,
-                f"GNSS epochs placed by their receive time (the host clock does not follow "
-                f"UTC), known to {sigma_s * 1000:.0f} ms ([gnss] receiver_latency_sigma_s): "
+                f"GNSS epochs placed by their receive time (the host clock not known to "
+                f"follow UTC), known to {sigma_s * 1000:.0f} ms ([gnss] receiver_latency_sigma_s): "
                 f"at {speed:.1f} m/s beyond RTK class, DEGRADED; sync the host clock (NTP, "
                 "PPS, gpsd), measure receiver_latency_s and set its sigma, or run the EKF "
                 "(it learns the error)",
