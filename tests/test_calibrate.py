@@ -5,6 +5,7 @@ from __future__ import annotations
 import dataclasses
 import math
 import re
+from collections import Counter
 from pathlib import Path
 
 import numpy as np
@@ -19,14 +20,18 @@ from gateway.calibration.mounting import (
     TURN_BOTH_WAYS,
     total_mounting_rpy_deg,
 )
+from gateway.calibration.receiver_latency import LATENCY_DRIVE, LatencyResult
 from gateway.calibration.travel_direction import TravelDirection
 from gateway.calibration.turn_axis import TurnAxisFit
 from gateway.calibration.work_windows import WorkWindow
-from gateway.cli.cmd_calibrate import calibrate
+from gateway.cli.cmd_calibrate import calibrate, latency_text
 from gateway.cli.main import main
-from gateway.config.gateway_config import GatewayConfig, config_toml, load_config
+from gateway.config.gateway_config import GatewayConfig, GnssSection, config_toml, load_config
 from gateway.estimation.attitude import dcm_from_rpy_deg, rpy_from_dcm
+from gateway.offline.log_replay import replay
 from sim_bus.scenarios import CONFIG_SECTIONS, SCENARIOS, generate
+from sim_bus.truth import Truth
+from tests.n2k_check import NAVIGATING, position_beyond_mode, status_modes
 
 #: The acceptance bound of issue 17, per axis.
 MAX_ERROR_DEG = 0.3
@@ -92,6 +97,7 @@ def test_cli_corrects_a_wrong_mounting_with_a_line_load_config_accepts(
     out, err = capsys.readouterr()
     assert status == 0, err
     assert out.startswith("[vehicle]\nimu_mounting_rpy_deg = [")
+    assert "[gnss]" not in out and "the host clock follows it): no latency to set" in err
     pasted = tmp_path / "pasted.toml"
     pasted.write_text(out)
     vehicle = load_config(pasted).vehicle
@@ -100,6 +106,71 @@ def test_cli_corrects_a_wrong_mounting_with_a_line_load_config_accepts(
     error = mounting_error_deg(found, truth)
     assert np.all(np.abs(error) < MAX_ERROR_DEG), (truth, found, error)
     assert re.search(r"roll +-?\d+\.\d\d \+/- 0\.\d\d", err)
+
+
+def test_cli_on_a_free_running_host_gives_the_receiver_latency(
+    tmp_path: Path, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """A host clock 30 s off UTC and a 120 ms receiver, the config at the default latency
+    (50 ms, unmeasured): the observer the mounting is found with was DEGRADED on the move,
+    its tilt not taken (exit 3, roll and pitch undetermined, before the latency was
+    measured). Now the printed lines hold the mounting and the latency the simulator's link
+    had (its least delay, 146 ms) within 10 ms; the observer on them is NAVIGATING on the
+    move, no position beyond its mode."""
+    truth = random_mounting(12)
+    wrong = (truth[0] + 4.0, truth[1] - 5.0, truth[2] + 6.0)
+    sc = SCENARIOS["calibration"]
+    sc = dataclasses.replace(
+        sc,
+        imu=dataclasses.replace(sc.imu, imu_mounting_rpy_deg=truth),
+        gnss=dataclasses.replace(sc.gnss, host_clock_offset_s=30.0, latency_s=0.12),
+    )
+    run = generate(sc, tmp_path, 2)
+    config = load_config(run.config_file)
+    link_latency_s = config.gnss.receiver_latency_s
+    vehicle = dataclasses.replace(config.vehicle, imu_mounting_rpy_deg=wrong)
+    gnss = dataclasses.replace(
+        config.gnss,
+        receiver_latency_s=GnssSection.receiver_latency_s,
+        receiver_latency_sigma_s=GnssSection.receiver_latency_sigma_s,
+    )
+    config = dataclasses.replace(config, vehicle=vehicle, gnss=gnss)
+    run.config_file.write_text(config_toml(config, "calibration test", CONFIG_SECTIONS))
+    status = main(
+        ["calibrate", "--can", str(tmp_path / "imu.log"), "--nmea", str(tmp_path / "gnss.nmea"),
+         "--config", str(tmp_path / "navgw.toml")]
+    )  # fmt: skip
+    out, err = capsys.readouterr()
+    assert status == 0, err
+    assert "host clock does not follow UTC" in err
+    pasted = tmp_path / "pasted.toml"
+    pasted.write_text(out)
+    calibrated = load_config(pasted)
+    assert calibrated.gnss.receiver_latency_s == pytest.approx(link_latency_s, abs=0.01)
+    assert 0.003 < calibrated.gnss.receiver_latency_sigma_s < 0.01
+    error = mounting_error_deg(calibrated.vehicle.imu_mounting_rpy_deg, truth)
+    assert np.all(np.abs(error) < MAX_ERROR_DEG), (truth, error)
+    merged = dataclasses.replace(
+        config,
+        vehicle=dataclasses.replace(
+            config.vehicle,
+            imu_mounting_rpy_deg=calibrated.vehicle.imu_mounting_rpy_deg,
+            imu_mounting_sigma_deg=calibrated.vehicle.imu_mounting_sigma_deg,
+        ),
+        gnss=dataclasses.replace(
+            config.gnss,
+            receiver_latency_s=calibrated.gnss.receiver_latency_s,
+            receiver_latency_sigma_s=calibrated.gnss.receiver_latency_sigma_s,
+        ),
+    )  # the lines pasted into the config
+    replay(tmp_path / "imu.log", tmp_path / "gnss.nmea", tmp_path / "out.log", merged)
+    truth_run = Truth.load(tmp_path / "truth.npz")
+    checked, beyond = position_beyond_mode(tmp_path / "out.log", truth_run)
+    assert checked > 20000
+    assert not beyond, "\n".join(beyond[:5])
+    modes = status_modes(tmp_path / "out.log")
+    after_start = [m for t, m in modes if t - modes[0][0] > 60.0]
+    assert after_start.count(NAVIGATING) > 0.9 * len(after_start), Counter(after_start)
 
 
 @pytest.mark.parametrize(
@@ -262,3 +333,20 @@ def test_imu_intervals_cut_at_epochs_and_drop_gaps() -> None:
     for k in range(50, 60):  # samples 40 .. 49 missing: a gap of 86 ms
         intervals.add(sample(k * dt, (0.0, 0.0, 0.0), (0.0, 0.0, -9.8)))
     assert intervals.cut(55 * dt) is None
+
+
+def test_the_latency_is_needed_off_utc_and_determined_within_10_ms() -> None:
+    """On a host following UTC nothing to set; off it (or with no date to tell) the latency
+    counts only within 10 ms, and is configured with the placement's 3 ms walk added."""
+    on_utc = LatencyResult(True, 0.05)
+    assert not on_utc.needed and on_utc.determined and on_utc.config_sigma_s is None
+    assert "no latency to set" in latency_text(on_utc)
+    unlearnt = LatencyResult(False, 0.05)
+    assert unlearnt.needed and not unlearnt.determined
+    assert latency_text(unlearnt).endswith(LATENCY_DRIVE)
+    no_date = LatencyResult(None, 0.05, 0.12, 0.02)
+    assert no_date.needed and not no_date.determined
+    assert "120.0 ms +/- 20.0, configured 50.0  still missing" in latency_text(no_date)
+    measured = LatencyResult(False, 0.05, 0.146, 0.0027)
+    assert measured.determined
+    assert measured.config_sigma_s == pytest.approx(math.hypot(0.0027, 0.003), abs=1e-5)

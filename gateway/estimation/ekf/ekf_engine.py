@@ -1528,6 +1528,15 @@ class EkfEngine:
         p = self._p
         return self.clock.epoch_sigma_s if p is None else math.sqrt(p.item(EPOCH, EPOCH))
 
+    def epoch_time_error(self) -> tuple[float, float] | None:
+        """What the filter has learnt of the epochs' placement on a host clock that does not
+        follow UTC: the configured receiver latency's error (the true latency less it), s,
+        and its 1-sigma; None on a host that follows UTC, or before the filter runs."""
+        p = self._p
+        if p is None or self.clock.epoch_sigma_s == 0.0:
+            return None
+        return self._epoch_err_s, math.sqrt(p.item(EPOCH, EPOCH))
+
     def _track_epoch_error(self) -> None:
         """The EPOCH state as the clock knows the epochs' times: on a host clock that does
         not follow UTC, a constant of the clock's ``epoch_sigma_s`` (the configured receiver

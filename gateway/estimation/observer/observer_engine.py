@@ -2127,8 +2127,8 @@ class ObserverEngine:
                 f"GNSS epochs placed by their receive time (the host clock not known to "
                 f"follow UTC), known to {sigma_s * 1000:.0f} ms ([gnss] receiver_latency_sigma_s): "
                 f"at {speed:.1f} m/s beyond RTK class, DEGRADED; sync the host clock (NTP, "
-                "PPS, gpsd), measure receiver_latency_s and set its sigma, or run the EKF "
-                "(it learns the error)",
+                "PPS, gpsd), measure the latency (navgw calibrate on a recorded drive gives "
+                "both keys), or run the EKF (it learns the error)",
                 "epoch share",
             )
         last = self._t_epoch_share_beyond_s
