@@ -140,9 +140,9 @@ def test_a_retired_key_is_ignored_with_a_warning_and_the_rest_still_read(
     one that is gone: an upgrade must not stop the service on it."""
     (section, retired), *_ = ((s, k) for s, keys in RETIRED_KEYS.items() for k in keys)
     path = tmp_path / "old.toml"
-    path.write_text(f"[{section}]\n{retired} = 5e-4\ntau_heading_s = 3.0\n")
+    path.write_text(f"[{section}]\n{retired} = 5e-4\nalign_min_speed_mps = 3.0\n")
     with caplog.at_level("WARNING", logger="gateway.config.gateway_config"):
         config = load_config(path)
-    assert getattr(config, section).tau_heading_s == 3.0
+    assert getattr(config, section).align_min_speed_mps == 3.0
     assert f"{path}: {section}.{retired} is ignored" in caplog.text
     assert main(["config", "--check", str(path)]) == 0

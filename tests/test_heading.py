@@ -1,11 +1,14 @@
 """Heading channel and z-gyro bias KF (ALGORITHMS.md 2, seed 001)."""
 
 import math
+from pathlib import Path
 
 import numpy as np
+import pytest
 from numpy.testing import assert_allclose
 
 from drivers.units import DEG_TO_RAD
+from gateway.config.gateway_config import Engine, load_config
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.observer.heading_channel import (
     GyroZBiasKf,
@@ -16,6 +19,9 @@ from gateway.estimation.observer.heading_channel import (
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Solution
+from gateway.offline.log_replay import replay
+from sim_bus.scenarios import generate, scenario_from_toml
+from sim_bus.truth import Truth
 from tests.kinematics import (
     GYRO_ARW_PER_SAMPLE_RPS,
     Motion,
@@ -27,6 +33,7 @@ from tests.kinematics import (
     solutions,
     state_at,
 )
+from tests.n2k_check import heading_beyond_navigating
 from tests.test_outages import LEVER as OUTAGE_LEVER
 from tests.test_outages import MOTION as OUTAGE_DRIVE
 
@@ -107,7 +114,7 @@ def test_reversing_neither_jumps_180_nor_pulls_heading_backwards() -> None:
     )
     _, out = _trace(motion, ObserverConfig(), vel_noise=0.02)
     aligned = [(t, s) for t, s in out if t > 7.0]
-    # COG noise at 1.5 m/s is 0.02 / 1.5 rad = 0.8 deg per epoch; tau_heading averages it
+    # COG noise at 1.5 m/s is 0.02 / 1.5 rad = 0.8 deg per epoch; the channel's gain averages it
     assert max(abs(_yaw_err_deg(motion, t, s)) for t, s in aligned) < 0.6
     flags = {round(t): s.reversing for t, s in aligned}
     assert flags[40] and flags[45]  # driving backwards at 1.5 m/s
@@ -230,7 +237,7 @@ def _drive_channel(
         ref = None
         if course_share >= 1.0 or rng.random() < course_share:
             ref = HeadingReference(sigma_ref * rng.normal(), sigma_ref, HeadingSource.COG)
-        w_pz = channel.correct(k * DT_S, psi_err, ref, hc, 1.0, learn=True, yaw_rate_rps=0).w_pz_rps
+        w_pz = channel.correct(k * DT_S, psi_err, ref, hc, 1.0, True, 0.0, DT_S).w_pz_rps
     return b_true, psi_err
 
 
@@ -348,7 +355,7 @@ def test_the_heading_states_the_lag_an_unlearnt_z_bias_holds_it_at() -> None:
             hc += w_pz * dt
             ref = HeadingReference(sigma_ref * rng.normal(), sigma_ref, HeadingSource.COG)
             w_pz = channel.correct(
-                k * dt, psi_err, ref, hc, 1.0, learn=False, yaw_rate_rps=0
+                k * dt, psi_err, ref, hc, 1.0, learn=False, yaw_rate_rps=0, period_s=dt
             ).w_pz_rps
             if k >= 200:
                 ratios.append(abs(psi_err) / channel.sigma_psi_at(k * dt))
@@ -363,30 +370,52 @@ def test_a_heading_off_beyond_its_gap_is_stated_on_the_first_course_after_it() -
     2.5 m/s is 0.46 deg, so the first one after the gap is 4.4 sigma off; weighed by the
     stated 0.15 the channel took a tenth of it per epoch, NAVIGATING 2.0 deg off for 0.5 s
     (`outages` seed 551). Beyond 3 sigma, the first residual after a gap is the heading's
-    error: stated at once, and the next course takes nearly all of it."""
+    error: stated at once, and that course takes nearly all of it, what is left within the
+    sigma stated after it. Within 3 sigma it is the courses' noise: the gap's growth stated,
+    and the course weighed by it (the step over the period the engine holds the rate)."""
     cfg = ObserverConfig()
     sigma_ref = cfg.gnss_vel_sigma_mps / 2.5
     ref = HeadingReference(0.0, sigma_ref, HeadingSource.COG)
 
-    def after_gap(off_deg: float) -> HeadingChannel:
+    def after_gap(off_deg: float) -> tuple[HeadingChannel, float]:
+        """The channel after the first course 10 s after the gap, and its step, deg."""
         channel = HeadingChannel(cfg)
         channel.aligned(math.radians(0.1))
         channel.kf.p_rps2 = math.radians(0.008) ** 2  # the z bias learnt to its wander
         for k in range(100):  # 10 s on the course
-            channel.correct(0.1 * k, 0.0, ref, 0.0, 1.0, learn=True, yaw_rate_rps=0)
-        channel.correct(
-            20.0, math.radians(off_deg), ref, 0.0, 1.0, learn=True, yaw_rate_rps=0
-        )  # 10 s later
-        return channel
+            channel.correct(0.1 * k, 0.0, ref, 0.0, 1.0, True, 0.0, 0.1)
+        gap = channel.sigma_psi_at(20.0)
+        w_pz = channel.correct(20.0, math.radians(off_deg), ref, 0.0, 1.0, True, 0.0, 1.0).w_pz_rps
+        gain = gap**2 / (gap**2 + sigma_ref**2)
+        if off_deg < 1.0:
+            assert math.degrees(w_pz) == pytest.approx(gain * off_deg)
+        return channel, math.degrees(w_pz * 1.0)
 
-    calm = math.degrees(after_gap(0.0).sigma_psi_at(20.0))
-    assert calm < 0.3
-    off = after_gap(2.1)
-    assert math.degrees(off.sigma_psi_at(20.0)) > 1.9
-    step = (
-        off.correct(20.1, math.radians(2.1), ref, 0.0, 1.0, learn=True, yaw_rate_rps=0).w_pz_rps
-        * 0.1
+    calm, _ = after_gap(0.0)
+    assert math.degrees(calm.sigma_psi_at(20.0)) < 0.3
+    off, step_deg = after_gap(2.1)
+    assert step_deg > 0.9 * 2.1
+    assert abs(2.1 - step_deg) < math.degrees(off.sigma_psi_at(20.0))
+    noise, _ = after_gap(0.5)
+    assert noise.sigma_psi_at(20.0) == calm.sigma_psi_at(20.0)
+
+
+def test_a_1_hz_receiver_s_first_course_after_a_stop_is_weighed(tmp_path: Path) -> None:
+    """A 1 Hz receiver (GGA and RMC), `headland-reversing` seed 640: after a reverse and a
+    stop the vehicle pulls away into a turn, and the epoch at the stop's end reached no
+    heading correction, so the next was the first after a 2 s gap. Its course, at 0.6 m/s,
+    was 4.6 deg off (1.96 stated): a fixed T / 2 s took half of it, the heading 2.4 deg off
+    with 0.3 stated, NAVIGATING for 4 s (202 frames beyond). Weighed by its sigma as any
+    course: none beyond."""
+    scenario = scenario_from_toml(
+        {
+            "base": "headland-reversing",
+            "gnss": {"rate_hz": 1.0, "vtg": False, "gst": False, "zda": False},
+        }
     )
-    assert math.degrees(step) > 0.9 * 2.1
-    # within 3 sigma it is the courses' noise, as before: the gap's growth stated
-    assert math.degrees(after_gap(0.5).sigma_psi_at(20.0)) == calm
+    run = generate(scenario, tmp_path, seed=640)
+    config = load_config(run.config_file).with_engine(Engine.OBSERVER)
+    replay(run.imu_log, run.gnss_log, tmp_path / "out.log", config)
+    checked, beyond = heading_beyond_navigating(tmp_path / "out.log", Truth.load(run.truth_file))
+    assert checked > 20000
+    assert not beyond, "\n".join(beyond[:5])

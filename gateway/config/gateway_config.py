@@ -425,6 +425,8 @@ RETIRED_KEYS: dict[str, dict[str, str]] = {
     "observer": {
         "gyro_z_bias_walk_dps_per_sqrt_s": "the z-gyro bias's random walk is the in-run wander "
         "of gyro_bias_stability_dps and bias_correlation_time_s (since 2026-12-04)",
+        "tau_heading_s": "the first heading reference after a gap is weighed by its sigma "
+        "like any other (since 2026-12-06)",
     },
     "ekf": {
         "align_yaw_sigma_deg": "the first heading's 1-sigma is that of the courses it is "

@@ -95,7 +95,6 @@ class ObserverConfig:
     align_min_speed_mps: float = 1.5
 
     # --- heading channel (ALGORITHMS.md 2, seed 001) ---
-    tau_heading_s: float = 2.0  # heading time constant of an epoch after a gap (no gain)
     # course over ground is a heading reference above this (weighed by its sigma, 2 cm/s
     # over the speed): the receiver's course hold speed (a 1 m/s crawl on the gyro alone
     # drifted with the z bias's error, 1.7 deg off after a wander with 1 Hz fixes)

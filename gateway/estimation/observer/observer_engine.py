@@ -1756,8 +1756,9 @@ class ObserverEngine:
             self.clock.epoch_sigma_s,
         )  # fmt: skip
         corr = self._heading.correct(
-            t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn, yaw_rate_rps
-        )
+            t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn, yaw_rate_rps,
+            self._control_period_s,
+        )  # fmt: skip
         if corr.step_rad:
             self._turn_platform(corr.step_rad)
         if corr.change is not None:
