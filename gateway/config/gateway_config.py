@@ -150,7 +150,8 @@ class GnssSection:
     receiver_latency_s: float = field(
         default=0.05,
         metadata=_doc(
-            "least delay from an epoch to the receipt of its last sentence (receive mode)",
+            "least delay from an epoch to the receipt of its last sentence (receive mode;"
+            " navgw calibrate measures it)",
             **in_range(0.0, 1.0),
         ),
     )
@@ -158,7 +159,8 @@ class GnssSection:
         default=RECEIVE_EPOCH_SIGMA_S,
         metadata=_doc(
             "1-sigma of receiver_latency_s (receive mode); the default: not measured. The"
-            " observer says DEGRADED while speed x this is beyond 5 cm; the EKF learns it",
+            " observer says DEGRADED while speed x this is beyond 5 cm; the EKF learns it;"
+            " navgw calibrate gives it with the latency",
             **in_range(0.001, 0.5),
         ),
     )
