@@ -61,6 +61,14 @@ def simulate(
     return config
 
 
+def calibrate_cli(run_dir: Path) -> int:
+    """``navgw calibrate`` on the drive simulated into ``run_dir`` with its config."""
+    return main(
+        ["calibrate", "--can", str(run_dir / "imu.log"), "--nmea", str(run_dir / "gnss.nmea"),
+         "--config", str(run_dir / "navgw.toml")]
+    )  # fmt: skip
+
+
 def random_mounting(seed: int) -> tuple[float, float, float]:
     """Up to +/-10 deg on each axis."""
     r, p, y = np.random.default_rng(seed).uniform(-10.0, 10.0, 3)
@@ -90,10 +98,7 @@ def test_cli_corrects_a_wrong_mounting_with_a_line_load_config_accepts(
     truth = random_mounting(12)
     wrong = (truth[0] + 4.0, truth[1] - 5.0, truth[2] + 6.0)
     simulate(tmp_path, "calibration", 2, truth, wrong)
-    status = main(
-        ["calibrate", "--can", str(tmp_path / "imu.log"), "--nmea", str(tmp_path / "gnss.nmea"),
-         "--config", str(tmp_path / "navgw.toml")]
-    )  # fmt: skip
+    status = calibrate_cli(tmp_path)
     out, err = capsys.readouterr()
     assert status == 0, err
     assert out.startswith("[vehicle]\nimu_mounting_rpy_deg = [")
@@ -136,10 +141,7 @@ def test_cli_on_a_free_running_host_gives_the_receiver_latency(
     )
     config = dataclasses.replace(config, vehicle=vehicle, gnss=gnss)
     run.config_file.write_text(config_toml(config, "calibration test", CONFIG_SECTIONS))
-    status = main(
-        ["calibrate", "--can", str(tmp_path / "imu.log"), "--nmea", str(tmp_path / "gnss.nmea"),
-         "--config", str(tmp_path / "navgw.toml")]
-    )  # fmt: skip
+    status = calibrate_cli(tmp_path)
     out, err = capsys.readouterr()
     assert status == 0, err
     assert "host clock does not follow UTC" in err
@@ -201,10 +203,7 @@ def test_a_drive_missing_manoeuvres_says_which_and_exits_3(
     simulate(tmp_path, "short", 3, (2.0, -3.0, 4.0), (0.0, 0.0, 0.0))
     config = tmp_path / "navgw.toml"
     config.write_text(config.read_text() + observer_table)
-    status = main(
-        ["calibrate", "--can", str(tmp_path / "imu.log"), "--nmea", str(tmp_path / "gnss.nmea"),
-         "--config", str(tmp_path / "navgw.toml")]
-    )  # fmt: skip
+    status = calibrate_cli(tmp_path)
     out, err = capsys.readouterr()
     assert status == 3
     assert out == ""
