@@ -1748,7 +1748,7 @@ class ObserverEngine:
         # the heading at t_e with the control applied since (the last epoch's, applied after
         # t_e): what is left of the residual. From the row's heading alone, each epoch took
         # the part of the last correction applied after t_e again, and the gain had to be
-        # capped at T / tau_heading (one epoch late): aligned 3.7 deg off on a course at
+        # capped at T / 2 s (one epoch late): aligned 3.7 deg off on a course at
         # 1.4 m/s, it took 2 s to come within 1.7 deg, NAVIGATING (slope-start seed 540).
         psi_e = row[_PSI] - (self._hc_rad - row[_HC])
         ref = self._heading.select_reference(
