@@ -1532,10 +1532,9 @@ class EkfEngine:
         """What the filter has learnt of the epochs' placement on a host clock that does not
         follow UTC: the configured receiver latency's error (the true latency less it), s,
         and its 1-sigma; None on a host that follows UTC, or before the filter runs."""
-        p = self._p
-        if p is None or self.clock.epoch_sigma_s == 0.0:
+        if self._p is None or self.clock.epoch_sigma_s == 0.0:
             return None
-        return self._epoch_err_s, math.sqrt(p.item(EPOCH, EPOCH))
+        return self._epoch_err_s, self._epoch_sigma_s()
 
     def _track_epoch_error(self) -> None:
         """The EPOCH state as the clock knows the epochs' times: on a host clock that does
