@@ -65,13 +65,13 @@ def position_errors_m(
     messages: list[Decoded], truth: Truth, after_s: float
 ) -> npt.NDArray[np.float64]:
     """Horizontal errors (m) of 129025 reference-point positions later than ``after_s``."""
-    from gateway.estimation.geodesy import lla_to_ned
+    from gateway.estimation.geodesy import horizontal_ned
 
     rows = [m for m in messages if m.id == "positionRapidUpdate" and m.t - truth.t[0] > after_s]
-    lla = np.array([[m.fields["latitude"], m.fields["longitude"], 0.0] for m in rows], dtype=float)
-    ned = lla_to_ned(lla, truth.origin_lla)
+    lat_lon = np.array([[m.fields["latitude"], m.fields["longitude"]] for m in rows], dtype=float)
+    ne = horizontal_ned(lat_lon.reshape(-1, 2), truth.origin_lla)
     true = truth_at(truth, np.array([m.t for m in rows])).pos_ned_m
-    return np.hypot(*(ned[:, :2] - true[:, :2]).T)
+    return np.hypot(*(ne - true[:, :2]).T)
 
 
 @dataclass(frozen=True)
@@ -321,7 +321,7 @@ def implausible_frames(
     :func:`status_modes`), a frame within 0.1 s of a NAVGW_STATUS saying DEGRADED or FAULT is
     held to range and finiteness only: SPEC 4 lets a value be off while STATUS says so.
     """
-    from gateway.estimation.geodesy import lla_to_ned
+    from gateway.estimation.geodesy import horizontal_ned, lla_to_ned
 
     t_truth = truth.t
     yaw_rate = np.gradient(np.unwrap(truth.rpy_rad[:, 2]), t_truth)
@@ -382,8 +382,12 @@ def implausible_frames(
             if lat is None or lon is None:
                 continue
             h = values.get("altitude")
-            ned = lla_to_ned(np.array([[lat, lon, 0.0 if h is None else h]]), truth.origin_lla)[0]
-            off = float(np.min(np.hypot(*(truth.pos_ned_m[w, :2] - ned[:2]).T)))
+            if h is None:
+                ne = horizontal_ned((lat, lon), truth.origin_lla)
+            else:
+                ned = lla_to_ned((lat, lon, h), truth.origin_lla)
+                ne = ned[:2]
+            off = float(np.min(np.hypot(*(truth.pos_ned_m[w, :2] - ne).T)))
             if off > limits.position_m:
                 bad(m, f"lat {lat:.7f} lon {lon:.7f}, {off:.1f} m from the truth track")
             elif h is not None:

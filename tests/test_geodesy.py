@@ -8,6 +8,7 @@ from gateway.estimation.geodesy import (
     E2,
     LocalFrame,
     ecef_to_lla,
+    horizontal_ned,
     lla_to_ecef,
     lla_to_ned,
     ned_to_lla,
@@ -35,6 +36,18 @@ def test_one_arcsecond_north_matches_meridian_radius() -> None:
     assert_allclose(ned[0], (m_radius + ORIGIN[2]) * np.radians(1 / 3600), rtol=1e-6)
     assert abs(ned[1]) < 1e-9
     assert abs(ned[2]) < 1e-3  # earth curvature over 31 m: 0.07 mm
+
+
+def test_a_position_without_height_is_placed_at_the_ground_s_scale() -> None:
+    """129025 has no height: a field 600 m up, points 250 m out, come back to the millimetre
+    at the origin's height, where 0 m put them 2.4 cm short (the 1e-4 of 600 m / R)."""
+    origin = np.array([-23.5, -47.5, 600.0])
+    ned = np.array([[250.0, 0.0, 0.5], [0.0, -250.0, -1.0], [-180.0, 180.0, 0.0]])
+    lat_lon = ned_to_lla(ned, origin)[:, :2]
+    assert_allclose(horizontal_ned(lat_lon, origin), ned[:, :2], atol=1e-3)
+    assert_allclose(horizontal_ned(lat_lon[0], origin), ned[0, :2], atol=1e-3)
+    at_zero = lla_to_ned(np.column_stack([lat_lon, np.zeros(3)]), origin)[:, :2]
+    assert float(np.max(np.abs(at_zero - ned[:, :2]))) > 0.02
 
 
 def test_local_frame_scalar_path_equals_the_array_path() -> None:

@@ -19,7 +19,7 @@ from drivers.samples import GnssFix
 from gateway.config.gateway_config import Engine
 from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.epoch_clock import DELAY_WINDOW_S, EpochTime
-from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.geodesy import horizontal_ned, lla_to_ned
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from gateway.estimation.solution import Mode
@@ -61,11 +61,13 @@ def position_errors(
         if m.id != "positionRapidUpdate" or m.fields["latitude"] is None:
             continue
         t = motion_time(m.t)
-        ned = lla_to_ned(np.array([m.fields["latitude"], m.fields["longitude"], 0.0]), ORIGIN_LLA)
+        ne = horizontal_ned(
+            np.array([m.fields["latitude"], m.fields["longitude"]], dtype=float), ORIGIN_LLA
+        )
         truth = state_at(motion, t).p_ned_m[0].copy()
         if t >= after:
             truth[0] += north_m
-        out.append((t, float(np.hypot(*(ned[:2] - truth[:2])))))
+        out.append((t, float(np.hypot(*(ne - truth[:2])))))
     return out
 
 

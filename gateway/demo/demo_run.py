@@ -38,7 +38,7 @@ from gateway.config.gateway_config import (
 )
 from gateway.demo.accuracy import TruthAt, attitude_error_rad, truth_at
 from gateway.demo.playback import SyncedPlayback
-from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.geodesy import horizontal_ned
 from gateway.estimation.solution import Mode, Solution
 from gateway.readback.run_series import read_run
 from gateway.service.live_loop import GatewayService
@@ -100,8 +100,8 @@ class Trace:
         self.rpy_rad.append((sol.roll_rad, sol.pitch_rad, sol.yaw_rad))
         self.bias_g_rps.append(np.asarray(sol.bias_g_rps, dtype=float))
         self.bias_a_mps2.append(np.asarray(sol.bias_a_mps2, dtype=float))
-        ned = lla_to_ned(np.array([[sol.lat_deg, sol.lon_deg, 0.0]]), origin_lla)[0]
-        self.ne_m.append((float(ned[0]), float(ned[1])))
+        ne = horizontal_ned((sol.lat_deg, sol.lon_deg), origin_lla)
+        self.ne_m.append((float(ne[0]), float(ne[1])))
 
 
 @dataclass(frozen=True)

@@ -23,7 +23,7 @@ from matplotlib.typing import HashableList
 
 from drivers.units import RAD_TO_DEG
 from gateway.demo.accuracy import attitude_error_rad, horizontal_error_m, truth_at
-from gateway.estimation.geodesy import lla_to_ned
+from gateway.estimation.geodesy import horizontal_ned
 from gateway.isobus.j1939 import Pgn
 from gateway.isobus.output_scheduler import DEFAULT_RATES_HZ
 from gateway.readback.run_series import Array, RunSeries
@@ -135,8 +135,7 @@ def _track(ax: Axes, run: RunSeries) -> None:
     if not len(t):
         ax.text(0.5, 0.5, "no position sent", transform=ax.transAxes, ha="center")
         return
-    lla = np.column_stack([lat, lon, np.zeros_like(lat)])
-    ned = lla_to_ned(lla, lla[0])
+    ned = horizontal_ned(np.column_stack([lat, lon]), (lat[0], lon[0], 0.0))
     fix = np.array(_fix_at(run, t))
     for name in dict.fromkeys(fix):
         mine = fix == name
@@ -249,6 +248,6 @@ def _errors(att_ax: Axes, pos_ax: Axes, run: RunSeries, truth: Truth) -> None:
     t = run.times("POSITION_RAPID_UPDATE")
     lat = run.numbers("POSITION_RAPID_UPDATE", "LATITUDE")
     lon = run.numbers("POSITION_RAPID_UPDATE", "LONGITUDE")
-    ned = lla_to_ned(np.column_stack([lat, lon, np.zeros_like(lat)]), truth.origin_lla)
-    pos_ax.plot(t - run.t0, horizontal_error_m(ned, truth_at(truth, t).pos_ned_m), lw=0.8)
+    ne = horizontal_ned(np.column_stack([lat, lon]), truth.origin_lla)
+    pos_ax.plot(t - run.t0, horizontal_error_m(ne, truth_at(truth, t).pos_ned_m[:, :2]), lw=0.8)
     pos_ax.set_ylabel("m")

@@ -86,6 +86,17 @@ def lla_to_ned(lla: npt.ArrayLike, origin_lla: npt.ArrayLike) -> Array:
     return d @ c_ecef_to_ned(origin_lla).T
 
 
+def horizontal_ned(lat_lon_deg: npt.ArrayLike, origin_lla: npt.ArrayLike) -> Array:
+    """North and east, m, (..., 2) of positions given by latitude and longitude alone (deg,
+    (..., 2): 129025 carries no height) relative to ``origin_lla``, each taken at the
+    origin's height, where the horizontal scale is that of the ground: at 0 m a field 600 m
+    up came out 1e-4 small, 2.5 cm at 250 m from its origin."""
+    lat_lon = np.asarray(lat_lon_deg, dtype=float)
+    origin = np.asarray(origin_lla, dtype=float)
+    h = np.full(lat_lon.shape[:-1] + (1,), origin[2])
+    return lla_to_ned(np.concatenate((lat_lon, h), axis=-1), origin)[..., :2]
+
+
 def ned_to_lla(ned_m: npt.ArrayLike, origin_lla: npt.ArrayLike) -> Array:
     """NED m (..., 3) relative to ``origin_lla`` -> geodetic (lat deg, lon deg, height m)."""
     xyz = np.asarray(ned_m, dtype=float) @ c_ecef_to_ned(origin_lla) + lla_to_ecef(origin_lla)
