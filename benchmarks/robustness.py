@@ -119,6 +119,19 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
             }
         },
     ),
+    "imu-warm-up": (
+        "IMU cold, warming 5 -> 45 degC (5 min time constant), its biases following at "
+        "0.01 deg/s and 0.1 mg per degC 1-sigma",
+        {
+            "imu": {
+                "temp_start_c": 5.0,
+                "temp_end_c": 45.0,
+                "temp_tau_s": 300.0,
+                "gyro_bias_tempco_sigma_rps_per_c": 0.01 * math.pi / 180,
+                "accel_bias_tempco_sigma_mps2_per_c": 0.1e-3 * 9.80665,
+            }
+        },
+    ),
     "fast-wide": (
         "6 m/s work speed, 30 m swaths, 12 m turns at 3 m/s, north-east swaths",
         {

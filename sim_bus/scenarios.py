@@ -36,7 +36,7 @@ from gateway.config.gateway_config import (
 )
 from gateway.estimation.attitude import dcm_from_rpy_deg
 from gateway.estimation.epoch_clock import DELAY_WINDOW_S
-from sim_bus.adis16334 import Adis16334Config, Adis16334Output, simulate
+from sim_bus.adis16334 import Adis16334Config, Adis16334Output, simulate, temperature_c
 from sim_bus.gnss_receiver import (
     FixInterval,
     GnssReceiverConfig,
@@ -268,9 +268,7 @@ def continuation(
     bias_g = truth.bias_g_rps[-1] @ c_b_imu  # body -> IMU axes: C^T b
     bias_a = truth.bias_a_mps2[-1] @ c_b_imu
     t_run = float(truth.t[-1] - truth.t[0])
-    temp_end_c = imu.temp_end_c + (imu.temp_start_c - imu.temp_end_c) * math.exp(
-        -t_run / imu.temp_tau_s
-    )
+    temp_end_c = float(temperature_c(np.asarray(t_run), imu))
     lat, lon, alt = (float(x) for x in truth.lla[-1])
     vehicle = dataclasses.replace(
         scenario.vehicle,

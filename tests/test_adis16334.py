@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import time
 from dataclasses import replace
 
 import numpy as np
@@ -164,8 +163,31 @@ def test_aux_registers_and_dec() -> None:
     assert np.all(out.aux.smpl_prd == 0x0301) and len(out.aux.index) == 5
 
 
-def test_fifteen_minutes_model_in_about_a_second() -> None:
-    t, w, f = truth(900.0)
-    start = time.perf_counter()
-    simulate(t, w, f, Adis16334Config())
-    assert time.perf_counter() - start < 2.0
+def test_the_biases_follow_the_warm_up_by_coefficients_of_the_datasheet_s_size() -> None:
+    """A unit warming from 5 to 45 degC: each bias moves by its drawn coefficient times the
+    temperature TEMP_OUT reports, and a unit without coefficients (the default) not at all."""
+    warm = replace(
+        QUIET,
+        temp_start_c=5.0,
+        temp_end_c=45.0,
+        temp_tau_s=300.0,
+        gyro_bias_tempco_sigma_rps_per_c=0.01 * DEG_TO_RAD,
+        accel_bias_tempco_sigma_mps2_per_c=0.1e-3 * G,
+        seed=3,
+    )
+    t, w, f = truth(600.0, dec=4)
+    out = simulate(t, w, f, warm)
+    counts = ((out.aux.temp_out.astype(int) & 0xFFF) ^ 0x800) - 0x800
+    warmed = 25.0 + 0.06785 * counts - 5.0
+    assert warmed[0] == pytest.approx(0.0, abs=0.2) and warmed[-1] == pytest.approx(34.6, abs=0.2)
+    for bias, sigma in ((out.bias_g_rps, 0.01 * DEG_TO_RAD), (out.bias_a_mps2, 0.1e-3 * G)):
+        k = bias[out.aux.index] / warmed[:, None].clip(1.0)  # per degC, per axis
+        assert np.all(np.abs(k[-1]) < 4 * sigma) and np.any(np.abs(k[-1]) > 0.3 * sigma)
+        np.testing.assert_allclose(
+            k[warmed > 5.0], np.broadcast_to(k[-1], k[warmed > 5.0].shape), rtol=0.05
+        )
+    e_w = counts_from_words(out.gyro_words) * GYRO_LSB_RPS - w - out.bias_g_rps
+    assert np.abs(e_w).max() <= GYRO_LSB_RPS / 2 + 1e-12  # the truth's bias is the one applied
+    still = simulate(t, w, f, replace(warm, gyro_bias_tempco_sigma_rps_per_c=0.0,
+                                      accel_bias_tempco_sigma_mps2_per_c=0.0))  # fmt: skip
+    assert np.all(still.bias_g_rps == 0.0) and np.all(still.bias_a_mps2 == 0.0)
