@@ -403,6 +403,44 @@ def test_a_dual_antenna_heading_5_deg_off_is_not_followed(
 
 
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
+def test_a_dual_antenna_heading_that_drifts_is_told_by_the_courses(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture, engine: Engine
+) -> None:
+    """HDT drifting 0.2 deg/s for 30 s on a straight (multipath on one antenna), then right
+    again: each epoch continuous with the last, it passed the observer's HDT screen and the
+    EKF's gate, and both followed it 6 deg off, NAVIGATING (custom field seed 669: 12-14
+    deg). The courses over ground tell it: no heading beyond what the mode states, and the
+    HDT taken again once it agrees with the heading."""
+    drift = (30.0, 60.0)
+    rng = np.random.default_rng(12)
+    imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
+    fixes = []
+    for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07, hdt=True):
+        assert f.heading_rad is not None
+        t = motion_time(f.t)
+        off = np.radians(0.2 * (t - drift[0])) if drift[0] <= t < drift[1] else 0.0
+        noise = np.radians(0.15) * rng.standard_normal()
+        fixes.append(dataclasses.replace(f, heading_rad=(f.heading_rad + off + noise) % TWO_PI))
+    log = tmp_path / "out.log"
+    with caplog.at_level(logging.WARNING):
+        run(log, engine, imu, fixes)
+    told = np.array([t for t, d in status(log) if Mode(d[2]) in (Mode.DEGRADED, Mode.FAULT)])
+    yaw_errors = [
+        (t, abs(math.degrees(math.remainder(yaw - state_at(MOTION, t).yaw_rad[0], TWO_PI))))
+        for m in decode_log(log)
+        if m.id == "attitude"
+        and (yaw := m.fields["yaw"]) is not None
+        and (t := motion_time(m.t)) >= 20.0
+    ]
+    untold = [
+        (t, e) for t, e in yaw_errors if e > 1.6 and np.min(np.abs(told - t), initial=1.0) > 0.1
+    ]  # 0.1 deg + 3 times the 0.5 deg a mode short of DEGRADED states
+    assert len(yaw_errors) > 1000 and not untold, untold[:3]
+    assert max(e for t, e in yaw_errors if t >= 80.0) < 0.3  # the HDT back, as before
+    assert any("courses over ground" in r.getMessage() for r in caplog.records)
+
+
+@pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
 @pytest.mark.parametrize(("dsog_mps", "dcog_deg"), [(0.3, 0.0), (0.0, 3.0)])
 def test_a_biased_velocity_with_the_positions_right_is_the_velocitys_fault(
     tmp_path: Path, engine: Engine, dsog_mps: float, dcog_deg: float

@@ -39,7 +39,7 @@ A filter whose heading gain is small (courses at 1 m/s are 1.2 deg each, P's hea
 while the heading sits off by the step times a loop time of 10 s. Its courses say so: the
 heading window also takes each epoch's course less the heading before it
 (:meth:`CorrectionWindow.add_course`), and their weighted mean, beyond its own sigma and
-the largest heading sigma stated in the window, is judged with the same ``K_*``. On
+the heading sigma stated with them, is judged with the same ``K_*``. On
 `headland-reversing` seed 553 with +0.15 deg/s at 250 s (in a slow turn before a stop and
 a reverse at 1 m/s) the EKF's corrections stayed at 1.5 of what they explain with the
 heading 1.6 deg off and 0.22 stated; its courses' mean was 5 sigma off. Over the
@@ -136,8 +136,10 @@ class CorrectionWindow:
         self._sigma_bg = _WindowMax()  # the gyro bias's
         self._sum_n = self._sum_e = 0.0
         self.angle_rad = 0.0  # the window's sum, magnitude
-        self._courses: deque[tuple[float, float, float]] = deque()  # (t, 1/sigma^2, r/sigma^2)
-        self._sum_w = self._sum_wr = 0.0
+        # (t, 1/sigma^2, r/sigma^2, the angle's sigma stated then/sigma^2)
+        self._courses: deque[tuple[float, float, float, float]] = deque()
+        self._sum_w = self._sum_wr = self._sum_ws = 0.0
+        self._sigma_angle_now = 0.0  # the last stated with a correction
         self._ratio: tuple[float, float] | None = None  # _course_ratio's, till the next add
         self._t_change_s = -math.inf  # the last change that re-opened the biases
         self._above_since_s: float | None = None  # beyond K_SUSTAINED since then
@@ -163,6 +165,7 @@ class CorrectionWindow:
             self._sum_n -= n
             self._sum_e -= e
         self._sigma_angle.push(t_s, sigma_angle_rad, t_old)
+        self._sigma_angle_now = sigma_angle_rad
         self._sigma_bg.push(t_s, sigma_bg_rps, t_old)
         self.angle_rad = math.hypot(self._sum_n, self._sum_e)
 
@@ -173,7 +176,7 @@ class CorrectionWindow:
         self._sigma_bg.clear()
         self._sum_n = self._sum_e = self.angle_rad = 0.0
         self._courses.clear()
-        self._sum_w = self._sum_wr = 0.0
+        self._sum_w = self._sum_wr = self._sum_ws = 0.0
         self._ratio = None
         self._above_since_s = None
 
@@ -202,29 +205,37 @@ class CorrectionWindow:
         self._ratio = None
         lag_rad = 0.5 * yaw_rate_rps * interval_s
         w = 1.0 / (sigma_rad * sigma_rad + lag_rad * lag_rad)
-        self._courses.append((t_s, w, w * residual_rad))
+        ws = w * self._sigma_angle_now
+        self._courses.append((t_s, w, w * residual_rad, ws))
         self._sum_w += w
         self._sum_wr += w * residual_rad
+        self._sum_ws += ws
         t_old = t_s - self.window_s
         courses = self._courses
         while courses[0][0] <= t_old:
-            _, w_old, wr_old = courses.popleft()
+            _, w_old, wr_old, ws_old = courses.popleft()
             self._sum_w -= w_old
             self._sum_wr -= wr_old
+            self._sum_ws -= ws_old
         if len(courses) == 1:  # (no round-off left from those dropped)
-            self._sum_w, self._sum_wr = w, w * residual_rad
+            self._sum_w, self._sum_wr, self._sum_ws = w, w * residual_rad, ws
 
     def _course_ratio(self) -> tuple[float, float]:
         """The courses' weighted mean offset magnitude, rad, and its ratio to its 1-sigma
-        with the largest heading sigma stated in the window; (0, 0) before the courses span
-        :data:`COURSES_SPAN_S`."""
+        with the heading's: the heading sigma stated at each course, weighted as the course
+        (the std of a weighted mean of errors is at most the weighted mean of their stds).
+        The largest stated in the window instead kept a re-opened heading's sigma for the
+        window's 5 s after the HDT had taken it back to 0.07 deg, and a drifting HDT
+        steered the heading 1.7 deg off, NAVIGATING, before the courses were evidence. (0,
+        0) before the courses span :data:`COURSES_SPAN_S`."""
         if self._ratio is None:
             courses = self._courses
             if not courses or courses[-1][0] - courses[0][0] < COURSES_SPAN_S:
                 self._ratio = (0.0, 0.0)
             else:
                 offset = abs(self._sum_wr / self._sum_w)
-                sigma = math.sqrt(self._sigma_angle.value**2 + 1.0 / self._sum_w)
+                sigma_angle = self._sum_ws / self._sum_w
+                sigma = math.sqrt(sigma_angle * sigma_angle + 1.0 / self._sum_w)
                 self._ratio = (offset, offset / sigma)
         return self._ratio
 
@@ -281,7 +292,7 @@ class CorrectionWindow:
         again = t_s - self._t_change_s < REOPEN_HOLD_S
         if not again:
             self._t_change_s = t_s
-        self.clear()
+            self.clear()
         return BiasChange(self.axis, angle, angle / self.window_s, again, courses)
 
 

@@ -69,6 +69,7 @@ from gateway.estimation.attitude import (
     to_mat9,
 )
 from gateway.estimation.bias_change import (
+    WINDOW_S,
     BiasChange,
     CorrectionWindow,
     bias_change_text,
@@ -121,6 +122,7 @@ from gateway.estimation.epoch_clock import (
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
 from gateway.estimation.gnss_track import DRIFT_WINDOW_S, GnssTrack
+from gateway.estimation.hdt_doubt import HdtDoubt, hdt_doubt_text
 from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import ALIGN_LAG_S, WindowMotion
@@ -226,6 +228,8 @@ class EkfEngine:
         self._log = LogLimiter(log)
         self._corrections = CorrectionWindow("tilt")  # recent attitude corrections: a bias change?
         self._heading_corrections = CorrectionWindow("heading")  # the same for the z bias
+        self._hdt_doubt = HdtDoubt()  # an HDT the courses contradicted
+        self._t_hdt_used_s = -math.inf  # the last epoch whose HDT the filter took
         # turned at rest beyond the z bias since the last course, rad, over refused spans, s
         self._rest_turn = (0.0, 0.0)
         self._pending_turn_rad = 0.0  # turned in the rest spans not checked yet
@@ -699,7 +703,7 @@ class EkfEngine:
             self._noise_as_measured()
         if at_rest and not self._rest_epochs:  # (the last epoch was not at rest)
             self._forget_heading_corrections()
-        if fix.heading_rad is not None:
+        if fix.heading_rad is not None and self._hdt_admitted(t_e, c_e, fix.heading_rad):
             measurements.append(
                 fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD)
             )
@@ -729,6 +733,8 @@ class EkfEngine:
                 self.counters.zero_rate_rejected += 1
             elif not ok:
                 self.counters.heading_rejected += 1
+            elif m.name == "heading":
+                self._t_hdt_used_s = t_e
         if accepted:
             self._t_accepted_rx_s = fix.t
             self._inject(dx, t_e)
@@ -1024,7 +1030,28 @@ class EkfEngine:
             self._bias_changed(t_e, change, self._reopen_xy)
         change = self._heading_corrections.check(self._arw(), self._p_heading_sigma_rad())
         if change is not None:
+            if change.courses and t_e - self._t_hdt_used_s < WINDOW_S:
+                self._doubt_hdt(t_e, change)
             self._bias_changed(t_e, change, self._reopen_z)
+
+    def _hdt_admitted(self, t_e: float, c_e: Array, hdt_rad: float) -> bool:
+        """Take the epoch's HDT? Not while doubted (:class:`HdtDoubt`): its offset from
+        the heading held at ``t_e`` (attitude ``c_e``) against P's heading sigma."""
+        offset = wrap_pi(math.atan2(c_e[1, 0], c_e[0, 0]) - hdt_rad)
+        return self._hdt_doubt.admits(
+            t_e, offset, self._p_heading_sigma_rad(), self.cfg.hdt_sigma_deg * DEG_TO_RAD,
+            self.cfg.gate_sigma,
+        )  # fmt: skip
+
+    def _doubt_hdt(self, t_e: float, change: BiasChange) -> None:
+        """The courses left the heading an HDT steered (:mod:`gateway.estimation.hdt_doubt`):
+        the HDT is doubted, and the heading and z bias re-open by the change as for any
+        found first (the HDT's drift went into both), however soon after the last."""
+        self._hdt_doubt.doubt(t_e)
+        if change.again:
+            self._reopen_z(change)
+        self.counters.heading_rejected += 1
+        self._log.warning(t_e, hdt_doubt_text(t_e, change.angle_rad), "hdt")
 
     def _bias_changed(
         self, t_e: float, change: BiasChange, reopen: Callable[[BiasChange], str]

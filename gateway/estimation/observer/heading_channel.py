@@ -199,6 +199,7 @@ class HeadingChannel:
         self._p_psi_bz = 0.0  # its covariance with the z bias error that turns it, rad^2/s
         self._p_rest = (math.pi**2, 0.0)  # the two at the start of the window at rest
         self._corrections = CorrectionWindow("heading")  # recent control: a z bias change?
+        self._course: HeadingReference | None = None  # the epoch's course, if one
         self._reopened = False  # a change re-opened the bias, not yet learnt on a full line
 
     # ------------------------------------------------------------------ reference choice
@@ -223,6 +224,7 @@ class HeadingChannel:
         """
         cfg = self.cfg
         candidates: list[HeadingReference] = []
+        self._course = None
         if hdt_rad is not None:
             candidates.append(
                 HeadingReference(hdt_rad, cfg.hdt_sigma_deg * DEG_TO_RAD, HeadingSource.HDT)
@@ -242,9 +244,10 @@ class HeadingChannel:
                 )
                 if self.reversing:
                     psi = (cog_ref_rad + math.pi) % (2.0 * math.pi)
-                    candidates.append(HeadingReference(psi, sigma, HeadingSource.COG_REVERSED))
+                    self._course = HeadingReference(psi, sigma, HeadingSource.COG_REVERSED)
                 else:
-                    candidates.append(HeadingReference(cog_ref_rad, sigma, HeadingSource.COG))
+                    self._course = HeadingReference(cog_ref_rad, sigma, HeadingSource.COG)
+                candidates.append(self._course)
         ab = self._ab_line_reference(t_s, psi_hat_rad, yaw_rate_rps, stationary)
         if ab is not None:
             candidates.append(ab)
@@ -331,11 +334,32 @@ class HeadingChannel:
             return HeadingCorrection(w_pz_rps=r * self._gain(ref.sigma_rad) / period_s)
         sigma_rad = self.sigma_psi_rad
         step_rad = r * self._gain(ref.sigma_rad)
-        course = (-r, ref.sigma_rad, yaw_rate_rps, interval_s) if ref.source.white else None
+        course = self._course_evidence(ref, r, psi_hat_rad, yaw_rate_rps, interval_s)
         change = self._watch_corrections(
             t_s, (step_rad, sigma_rad), course, sigma_bz_rps, c22, learn
         )
         return HeadingCorrection(w_pz_rps=step_rad / period_s, change=change)
+
+    def _course_evidence(
+        self,
+        ref: HeadingReference,
+        r: float,
+        psi_hat_rad: float,
+        yaw_rate_rps: float,
+        interval_s: float,
+    ) -> tuple[float, float, float, float] | None:
+        """The epoch's course less the heading, its sigma, the yaw rate and the interval, for
+        the window (:meth:`CorrectionWindow.add_course`): the reference's if a course (``r``
+        the heading less it), else, under an HDT, the course's beside it. The HDT's screen
+        tells its jumps from the gyro's turn; one that drifts (0.2 deg/s for a minute:
+        multipath on an antenna) passes it epoch by epoch, and the observer followed it 12
+        deg off, NAVIGATING (custom `field` seed 669 with HDT): the courses say so."""
+        if ref.source.white:
+            return -r, ref.sigma_rad, yaw_rate_rps, interval_s
+        course = self._course
+        if ref.source is not HeadingSource.HDT or course is None:
+            return None
+        return wrap_pi(course.psi_rad - psi_hat_rad), course.sigma_rad, yaw_rate_rps, interval_s
 
     def _watch_corrections(
         self,
@@ -352,9 +376,8 @@ class HeadingChannel:
         whose errors last longer than an epoch), the z
         bias at ``sigma_bz_rps`` (before this epoch's bias update), into the window (while
         the gates are open: a fix not good enough to learn from is no evidence,
-        :meth:`_forget_corrections`). On a change (:mod:`gateway.estimation.bias_change`),
-        the z bias re-opens to the window's rate (about the vertical, so over ``c22`` for
-        body z) and its interval restarts; the heading's variance takes the angle turned."""
+        :meth:`_forget_corrections`). On a change (:mod:`gateway.estimation.bias_change`)
+        found first, :meth:`reopen`."""
         window = self._corrections
         if not learn:
             self._forget_corrections(step[1])
@@ -364,11 +387,17 @@ class HeadingChannel:
             window.add_course(t_s, *course)
         change = window.check(self._arw, self.sigma_psi_rad)
         if change is not None and not change.again:
-            self.kf.p_rps2 = max(self.kf.p_rps2, (change.rate_rps / c22) ** 2)
-            self._p_psi_rad2 = max(self._p_psi_rad2, change.angle_rad**2)
-            self._window = None
-            self._reopened = True
+            self.reopen(change, c22)
         return change
+
+    def reopen(self, change: BiasChange, c22: float) -> None:
+        """A change: the z bias re-opens to the window's rate (about the vertical, so over
+        ``c22`` for body z) and its interval restarts; the heading's variance takes the
+        angle turned."""
+        self.kf.p_rps2 = max(self.kf.p_rps2, (change.rate_rps / c22) ** 2)
+        self._p_psi_rad2 = max(self._p_psi_rad2, change.angle_rad**2)
+        self._window = None
+        self._reopened = True
 
     def _forget_corrections(self, sigma_rad: float) -> None:
         """The window ends (the gates closed, or the references stopped: a stop): what it

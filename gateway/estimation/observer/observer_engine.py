@@ -70,6 +70,7 @@ from gateway.estimation.gnss_error import (
     fix_velocity_sigma_mps,
 )
 from gateway.estimation.gnss_track import GnssTrack
+from gateway.estimation.hdt_doubt import HdtDoubt, hdt_doubt_text
 from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.levelling import ALIGN_LAG_S, WindowMotion
@@ -98,7 +99,7 @@ from gateway.estimation.observer.ground_constraint import (
     GroundResidual,
 )
 from gateway.estimation.observer.hdt_screen import HdtScreen
-from gateway.estimation.observer.heading_channel import HeadingChannel
+from gateway.estimation.observer.heading_channel import HeadingChannel, HeadingSource
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.position_channel import PositionChannel
 from gateway.estimation.observer.rest_window import RestWindow
@@ -204,6 +205,7 @@ class ObserverEngine:
         self._l_ant_f = tuple(float(x) for x in cfg.antenna_lever_arm_m)
         self._heading = HeadingChannel(cfg)
         self._hdt_screen = HdtScreen(cfg)  # HDT's jumps against the gyro's turn
+        self._hdt_doubt = HdtDoubt()  # an HDT the courses contradicted
         self.clock = clock or EpochClock.of(cfg)
         self._observer: TereshkovObserver | None = None
         # tilt alignment
@@ -1498,6 +1500,16 @@ class ObserverEngine:
         if change is not None:
             self._bias_changed(t_e, change, self._reopen_xy)
 
+    def _doubt_hdt(self, t_e: float, change: BiasChange, c22: float) -> None:
+        """The courses left the heading an HDT steered (:mod:`gateway.estimation.hdt_doubt`):
+        the HDT is doubted, and the heading and z bias re-open by the change as for any
+        found first (the HDT's drift went into both), however soon after the last."""
+        self._hdt_doubt.doubt(t_e)
+        if change.again:
+            self._heading.reopen(change, c22)
+        self.counters.hdt_rejected += 1
+        self._log.warning(t_e, hdt_doubt_text(t_e, change.angle_rad), "hdt")
+
     def _bias_changed(
         self, t_e: float, change: BiasChange, reopen: Callable[[BiasChange], str]
     ) -> None:
@@ -1737,6 +1749,18 @@ class ObserverEngine:
             self._heading.aligned(sigma)
             self._heading.reversing = self._forward is False and hdt_rad is None
             return
+        # the heading at t_e with the control applied since (the last epoch's, applied after
+        # t_e): what is left of the residual. From the row's heading alone, each epoch took
+        # the part of the last correction applied after t_e again, and the gain had to be
+        # capped at T / 2 s (one epoch late): aligned 3.7 deg off on a course at
+        # 1.4 m/s, it took 2 s to come within 1.7 deg, NAVIGATING (slope-start seed 540).
+        psi_e = row[_PSI] - (self._hc_rad - row[_HC])
+        sigma_hdt = cfg.hdt_sigma_deg * DEG_TO_RAD
+        if hdt_rad is not None and not self._hdt_doubt.admits(
+            t_e, wrap_pi(psi_e - hdt_rad), self._heading.sigma_psi_rad, sigma_hdt,
+            cfg.glitch_sigma,
+        ):  # fmt: skip
+            hdt_rad = None
         screen = self._hdt_screen
         if hdt_rad is not None and not screen.screen(
             t_e, row[_PSI], hdt_rad, row[_HC], self._heading.kf.sigma_rps,
@@ -1745,12 +1769,6 @@ class ObserverEngine:
             self.counters.hdt_rejected += 1
             self._log.warning(t_e, screen.text(t_e), "hdt")
             hdt_rad = None
-        # the heading at t_e with the control applied since (the last epoch's, applied after
-        # t_e): what is left of the residual. From the row's heading alone, each epoch took
-        # the part of the last correction applied after t_e again, and the gain had to be
-        # capped at T / 2 s (one epoch late): aligned 3.7 deg off on a course at
-        # 1.4 m/s, it took 2 s to come within 1.7 deg, NAVIGATING (slope-start seed 540).
-        psi_e = row[_PSI] - (self._hc_rad - row[_HC])
         ref = self._heading.select_reference(
             t_e, psi_e, cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary,
             self.clock.epoch_sigma_s,
@@ -1762,6 +1780,8 @@ class ObserverEngine:
         if corr.step_rad:
             self._turn_platform(corr.step_rad)
         if corr.change is not None:
+            if corr.change.courses and ref is not None and ref.source is HeadingSource.HDT:
+                self._doubt_hdt(t_e, corr.change, c_bn_dd)
             self._bias_changed(t_e, corr.change, self._reopened_z)
         self._w_pz_rps = corr.w_pz_rps
         obs.set_heading_rate(corr.w_pz_rps)
