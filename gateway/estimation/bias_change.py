@@ -241,6 +241,14 @@ class CorrectionWindow:
                 self._ratio = (offset, offset / sigma)
         return self._ratio
 
+    def courses_agree(self) -> bool:
+        """Whether the courses span :data:`COURSES_SPAN_S` and their mean offset is within
+        ``K_EXCESS`` of its sigma."""
+        courses = self._courses
+        if not courses or courses[-1][0] - courses[0][0] < COURSES_SPAN_S:
+            return False
+        return self._course_ratio()[1] <= K_EXCESS
+
     def explained_rad(self, arw_rad_per_sqrt_s: float, sigma_angle_rad: float) -> float:
         """1-sigma of the sum the model explains: the gyro's ARW over the window, the gyro
         bias 1-sigma times it (the largest stated with its corrections: they made up for the

@@ -703,10 +703,15 @@ class EkfEngine:
             self._noise_as_measured()
         if at_rest and not self._rest_epochs:  # (the last epoch was not at rest)
             self._forget_heading_corrections()
-        if fix.heading_rad is not None and self._hdt_admitted(t_e, c_e, fix.heading_rad):
-            measurements.append(
-                fuse_heading(c_e, fix.heading_rad, self.cfg.hdt_sigma_deg * DEG_TO_RAD)
-            )
+        if fix.heading_rad is not None:
+            sigma_hdt = self.cfg.hdt_sigma_deg * DEG_TO_RAD
+            if self._hdt_doubt.admits():
+                measurements.append(fuse_heading(c_e, fix.heading_rad, sigma_hdt))
+            elif course is not None:  # the HDT less the course, for the doubt's evidence
+                off = wrap_pi(fix.heading_rad - math.atan2(c_e[1, 0], c_e[0, 0]) - course[0])
+                self._hdt_doubt.add_course(
+                    t_e, off, math.hypot(course[1], sigma_hdt), course[2], course[3]
+                )
         measurements += self._zero_rate(fix, t_e)
         dx = np.zeros(N_STATES)
         accepted = False
@@ -1034,20 +1039,11 @@ class EkfEngine:
                 self._doubt_hdt(t_e, change)
             self._bias_changed(t_e, change, self._reopen_z)
 
-    def _hdt_admitted(self, t_e: float, c_e: Array, hdt_rad: float) -> bool:
-        """Take the epoch's HDT? Not while doubted (:class:`HdtDoubt`): its offset from
-        the heading held at ``t_e`` (attitude ``c_e``) against P's heading sigma."""
-        offset = wrap_pi(math.atan2(c_e[1, 0], c_e[0, 0]) - hdt_rad)
-        return self._hdt_doubt.admits(
-            t_e, offset, self._p_heading_sigma_rad(), self.cfg.hdt_sigma_deg * DEG_TO_RAD,
-            self.cfg.gate_sigma,
-        )  # fmt: skip
-
     def _doubt_hdt(self, t_e: float, change: BiasChange) -> None:
         """The courses left the heading an HDT steered (:mod:`gateway.estimation.hdt_doubt`):
         the HDT is doubted, and the heading and z bias re-open by the change as for any
         found first (the HDT's drift went into both), however soon after the last."""
-        self._hdt_doubt.doubt(t_e)
+        self._hdt_doubt.doubt()
         if change.again:
             self._reopen_z(change)
         self.counters.heading_rejected += 1

@@ -340,6 +340,12 @@ class HeadingChannel:
         )
         return HeadingCorrection(w_pz_rps=step_rad / period_s, change=change)
 
+    @property
+    def course(self) -> HeadingReference | None:
+        """The last epoch's course as a heading reference (turned round when reversing),
+        if it had one."""
+        return self._course
+
     def _course_evidence(
         self,
         ref: HeadingReference,

@@ -1504,7 +1504,7 @@ class ObserverEngine:
         """The courses left the heading an HDT steered (:mod:`gateway.estimation.hdt_doubt`):
         the HDT is doubted, and the heading and z bias re-open by the change as for any
         found first (the HDT's drift went into both), however soon after the last."""
-        self._hdt_doubt.doubt(t_e)
+        self._hdt_doubt.doubt()
         if change.again:
             self._heading.reopen(change, c22)
         self.counters.hdt_rejected += 1
@@ -1755,12 +1755,8 @@ class ObserverEngine:
         # capped at T / 2 s (one epoch late): aligned 3.7 deg off on a course at
         # 1.4 m/s, it took 2 s to come within 1.7 deg, NAVIGATING (slope-start seed 540).
         psi_e = row[_PSI] - (self._hc_rad - row[_HC])
-        sigma_hdt = cfg.hdt_sigma_deg * DEG_TO_RAD
-        if hdt_rad is not None and not self._hdt_doubt.admits(
-            t_e, wrap_pi(psi_e - hdt_rad), self._heading.sigma_psi_rad, sigma_hdt,
-            cfg.glitch_sigma,
-        ):  # fmt: skip
-            hdt_rad = None
+        hdt_doubted = hdt_rad is not None and not self._hdt_doubt.admits()
+        hdt_seen, hdt_rad = hdt_rad, None if hdt_doubted else hdt_rad
         screen = self._hdt_screen
         if hdt_rad is not None and not screen.screen(
             t_e, row[_PSI], hdt_rad, row[_HC], self._heading.kf.sigma_rps,
@@ -1777,6 +1773,13 @@ class ObserverEngine:
             t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn, yaw_rate_rps,
             self._control_period_s,
         )  # fmt: skip
+        course = self._heading.course
+        if hdt_doubted and hdt_seen is not None and course is not None:
+            self._hdt_doubt.add_course(
+                t_e, wrap_pi(hdt_seen - course.psi_rad),
+                math.hypot(course.sigma_rad, cfg.hdt_sigma_deg * DEG_TO_RAD), yaw_rate_rps,
+                self._epoch_interval_s,
+            )  # fmt: skip
         if corr.step_rad:
             self._turn_platform(corr.step_rad)
         if corr.change is not None:
