@@ -10,6 +10,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -369,6 +370,18 @@ def test_a_drifting_fixed_solution_is_caught_by_the_receivers_own_velocity(
     assert not untold, untold[:5]
 
 
+def hdt_fixes(offset_deg: Callable[[float], float], seed: int) -> list[GnssFix]:
+    """MOTION's epochs with an HDT, 0.15 deg of noise and ``offset_deg`` at each motion
+    time."""
+    rng = np.random.default_rng(seed)
+    fixes = []
+    for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07, hdt=True):
+        assert f.heading_rad is not None
+        off = np.radians(offset_deg(motion_time(f.t)) + 0.15 * rng.standard_normal())
+        fixes.append(dataclasses.replace(f, heading_rad=(f.heading_rad + off) % TWO_PI))
+    return fixes
+
+
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
 def test_a_dual_antenna_heading_5_deg_off_is_not_followed(
     tmp_path: Path, caplog: pytest.LogCaptureFixture, engine: Engine
@@ -378,14 +391,8 @@ def test_a_dual_antenna_heading_5_deg_off_is_not_followed(
     5 deg off, NAVIGATING. It is a jump against the gyro's turn: not used; the course over
     ground carries the heading, and the HDT is taken again when it comes back."""
     span = (50.0, 90.0)
-    rng = np.random.default_rng(11)
     imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
-    fixes = []
-    for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07, hdt=True):
-        assert f.heading_rad is not None
-        off = np.radians(5.0) if span[0] <= motion_time(f.t) < span[1] else 0.0
-        noise = np.radians(0.15) * rng.standard_normal()
-        fixes.append(dataclasses.replace(f, heading_rad=(f.heading_rad + off + noise) % TWO_PI))
+    fixes = hdt_fixes(lambda t: 5.0 if span[0] <= t < span[1] else 0.0, seed=11)
     log = tmp_path / "out.log"
     with caplog.at_level(logging.WARNING):
         core = run(log, engine, imu, fixes)
@@ -412,15 +419,8 @@ def test_a_dual_antenna_heading_that_drifts_is_told_by_the_courses(
     deg). The courses over ground tell it: no heading beyond what the mode states, and the
     HDT taken again once it agrees with the heading."""
     drift = (30.0, 60.0)
-    rng = np.random.default_rng(12)
     imu = imu_stream(MOTION, noise_g_rps=1e-4, noise_a_mps2=0.01)
-    fixes = []
-    for f in gnss_stream(MOTION, antenna_lever_arm_m=LEVER, latency_s=0.07, hdt=True):
-        assert f.heading_rad is not None
-        t = motion_time(f.t)
-        off = np.radians(0.2 * (t - drift[0])) if drift[0] <= t < drift[1] else 0.0
-        noise = np.radians(0.15) * rng.standard_normal()
-        fixes.append(dataclasses.replace(f, heading_rad=(f.heading_rad + off + noise) % TWO_PI))
+    fixes = hdt_fixes(lambda t: 0.2 * (t - drift[0]) if drift[0] <= t < drift[1] else 0.0, seed=12)
     log = tmp_path / "out.log"
     with caplog.at_level(logging.WARNING):
         run(log, engine, imu, fixes)
