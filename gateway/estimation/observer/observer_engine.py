@@ -1749,14 +1749,9 @@ class ObserverEngine:
             self._heading.aligned(sigma)
             self._heading.reversing = self._forward is False and hdt_rad is None
             return
-        # the heading at t_e with the control applied since (the last epoch's, applied after
-        # t_e): what is left of the residual. From the row's heading alone, each epoch took
-        # the part of the last correction applied after t_e again, and the gain had to be
-        # capped at T / 2 s (one epoch late): aligned 3.7 deg off on a course at
-        # 1.4 m/s, it took 2 s to come within 1.7 deg, NAVIGATING (slope-start seed 540).
-        psi_e = row[_PSI] - (self._hc_rad - row[_HC])
-        hdt_doubted = hdt_rad is not None and not self._hdt_doubt.admits()
-        hdt_seen, hdt_rad = hdt_rad, None if hdt_doubted else hdt_rad
+        doubted_hdt = hdt_rad if hdt_rad is not None and not self._hdt_doubt.admits() else None
+        if doubted_hdt is not None:
+            hdt_rad = None
         screen = self._hdt_screen
         if hdt_rad is not None and not screen.screen(
             t_e, row[_PSI], hdt_rad, row[_HC], self._heading.kf.sigma_rps,
@@ -1765,6 +1760,12 @@ class ObserverEngine:
             self.counters.hdt_rejected += 1
             self._log.warning(t_e, screen.text(t_e), "hdt")
             hdt_rad = None
+        # the heading at t_e with the control applied since (the last epoch's, applied after
+        # t_e): what is left of the residual. From the row's heading alone, each epoch took
+        # the part of the last correction applied after t_e again, and the gain had to be
+        # capped at T / 2 s (one epoch late): aligned 3.7 deg off on a course at
+        # 1.4 m/s, it took 2 s to come within 1.7 deg, NAVIGATING (slope-start seed 540).
+        psi_e = row[_PSI] - (self._hc_rad - row[_HC])
         ref = self._heading.select_reference(
             t_e, psi_e, cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary,
             self.clock.epoch_sigma_s,
@@ -1774,9 +1775,9 @@ class ObserverEngine:
             self._control_period_s,
         )  # fmt: skip
         course = self._heading.course
-        if hdt_doubted and hdt_seen is not None and course is not None:
+        if doubted_hdt is not None and course is not None:
             self._hdt_doubt.add_course(
-                t_e, wrap_pi(hdt_seen - course.psi_rad),
+                t_e, wrap_pi(doubted_hdt - course.psi_rad),
                 math.hypot(course.sigma_rad, cfg.hdt_sigma_deg * DEG_TO_RAD), yaw_rate_rps,
                 self._epoch_interval_s,
             )  # fmt: skip
