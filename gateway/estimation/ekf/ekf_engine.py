@@ -72,6 +72,7 @@ from gateway.estimation.bias_change import (
     WINDOW_S,
     BiasChange,
     CorrectionWindow,
+    FoundWalk,
     bias_change_text,
     xy_reopened_text,
     z_reopened_text,
@@ -228,6 +229,7 @@ class EkfEngine:
         self._log = LogLimiter(log)
         self._corrections = CorrectionWindow("tilt")  # recent attitude corrections: a bias change?
         self._heading_corrections = CorrectionWindow("heading")  # the same for the z bias
+        self._ba_walk = FoundWalk()  # the x/y accelerometer bias walk tilt changes showed
         self._hdt_doubt = HdtDoubt()  # an HDT the courses contradicted
         self._t_hdt_used_s = -math.inf  # the last epoch whose HDT the filter took
         # turned at rest beyond the z bias since the last course, rad, over refused spans, s
@@ -427,7 +429,12 @@ class EkfEngine:
         if t_s > 0.0:
             decay = math.exp(-t_s / self.cfg.gnss_error_correlation_s)
             self._fix_err_ned_m *= decay
-            predict(self._p, transition_matrix(t_s, dv_f, c_dt, decay), self._q_c, t_s)
+            q_c = self._q_c
+            walk = 0.0 if self._t_s is None else self._ba_walk.psd_at(self._t_s)
+            if walk:
+                q_c = q_c.copy()
+                q_c[BA.start : BA.start + 2] += walk
+            predict(self._p, transition_matrix(t_s, dv_f, c_dt, decay), q_c, t_s)
 
     def _align_tilt(self, t: float, w: Float3, f: Float3, dt: float) -> None:
         """Roll/pitch from the mean specific force of a quiet window; gyro bias if at rest.
@@ -1053,7 +1060,11 @@ class EkfEngine:
         self, t_e: float, change: BiasChange, reopen: Callable[[BiasChange], str]
     ) -> None:
         """A bias change (:mod:`gateway.estimation.bias_change`): ``reopen`` re-opens P and
-        says what it did, unless the change came again; counted and logged."""
+        says what it did, unless the change came again; counted and logged. A tilt change,
+        again or not, raises the x/y accelerometer bias walk for a while
+        (:class:`FoundWalk`)."""
+        if change.axis == "tilt":
+            self._ba_walk.found(t_e, GRAVITY_MPS2 * change.angle_rad)
         if change.again:
             self._log.warning(t_e, bias_change_text(t_e, change, ""), "bias change")
             return

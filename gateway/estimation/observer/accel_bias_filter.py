@@ -87,6 +87,7 @@ import numpy.typing as npt
 
 from drivers.units import DEG_TO_RAD, GRAVITY_MPS2
 from gateway.estimation.attitude import Mat9
+from gateway.estimation.bias_change import FoundWalk
 from gateway.estimation.chassis import CHASSIS_PITCH_SIGMA_RAD, CHASSIS_PITCH_WANDER_S
 
 Array = npt.NDArray[np.float64]
@@ -179,6 +180,7 @@ class AccelBiasFilter:
         self._climb_m = 0.0  # the height the platform gives the track over the chain, m
         self._h0_m = 0.0  # the height at its start, m
         self._t_height_s = 0.0  # its last weighed residual's time, s
+        self.walk = FoundWalk()  # the x/y bias walk tilt changes showed (the engine's finds)
 
     def start(
         self,
@@ -445,8 +447,9 @@ class AccelBiasFilter:
         chain's climb with ``along``, :meth:`_along_track`); returns dt."""
         dt = 0.0 if self._t_s is None else max(t_s - self._t_s, 0.0)
         if dt > 0.0:
+            assert self._t_s is not None
             e_applied = self._e_applied if self._chained else np.zeros(2)
-            self._predict(dt, f_p_ne, c9, e_applied, along)
+            self._predict(dt, f_p_ne, c9, e_applied, along, self.walk.psd_at(self._t_s))
         self._t_s = t_s
         return dt
 
@@ -457,9 +460,11 @@ class AccelBiasFilter:
         c9: Mat9,
         e_applied: Array,
         along: tuple[float, float, float, float] | None,
+        walk_psd: float,
     ) -> None:
-        """x <- F x + B u, P <- F P F^T + Q over ``dt``; F's entries and Q's diagonal set one
-        by one (per epoch, so numpy's per-call cost is what counts; docs/PERFORMANCE.md)."""
+        """x <- F x + B u, P <- F P F^T + Q over ``dt``, the x/y bias walking ``walk_psd``
+        ((m/s^2)^2 / s) beyond the in-run model; F's entries and Q's diagonal set one by one
+        (per epoch, so numpy's per-call cost is what counts; docs/PERFORMANCE.md)."""
         n, g = self.noise, self.g_mps2
         a, b, c, d = c9[0], c9[1], c9[3], c9[4]  # C_h; J C_h = ((-c, -d), (a, b))
         f = np.eye(N_STATES)
@@ -479,7 +484,7 @@ class AccelBiasFilter:
         walk = 2.0 * dt / n.bias_correlation_s
         q_a = n.accel_psd * dt
         q_x = (g * n.arw_rad_per_sqrt_s) ** 2 * dt
-        q_b = walk * n.accel_bias_sigma_mps2**2
+        q_b = walk * n.accel_bias_sigma_mps2**2 + walk_psd * dt
         q_g = walk * n.gyro_bias_sigma_rps**2
         q_psi = n.heading_sigma_rad**2 * (1.0 - decay_psi * decay_psi)
         q_th = n.chassis_pitch_sigma_rad**2 * dt / n.chassis_pitch_wander_s
@@ -491,7 +496,8 @@ class AccelBiasFilter:
         s[3] += u_e
         self._s = s
         p = f @ self._p @ f.T
-        p.flat[:: N_STATES + 1] += (q_a, q_a, q_x, q_x, q_b, q_b, q_g, q_g, q_b, q_psi, 0.0, q_th)
+        q_bz = walk * n.accel_bias_sigma_mps2**2
+        p.flat[:: N_STATES + 1] += (q_a, q_a, q_x, q_x, q_b, q_b, q_g, q_g, q_bz, q_psi, 0.0, q_th)
         self._set_p(p)
 
     def inconsistent(self) -> bool:

@@ -1459,6 +1459,7 @@ class ObserverEngine:
             # the residual is not that of the biases the filter holds learnt: re-opened to
             # the turn-on spread, so the stated tilt covers them and turns learn them again
             flt.reopen(sigma0, 0.0, obs.c_bp9, absorbed=False)
+            flt.walk.found(t_e, sigma0)
             flt.clear_window()
             self.counters.bias_changes += 1
             self._log.warning(
@@ -1514,7 +1515,11 @@ class ObserverEngine:
         self, t_e: float, change: BiasChange, reopen: Callable[[BiasChange], str]
     ) -> None:
         """A bias change (:mod:`gateway.estimation.bias_change`): ``reopen`` re-opens the
-        biases and says what it did, unless the change came again; counted and logged."""
+        biases and says what it did, unless the change came again; counted and logged. A tilt
+        change, again or not, raises the accel-bias filter's x/y bias walk for a while
+        (:class:`gateway.estimation.bias_change.FoundWalk`)."""
+        if change.axis == "tilt" and self._ba_filter is not None:
+            self._ba_filter.walk.found(t_e, self._reopened_ba_mps2(change))
         if change.again:
             self._log.warning(t_e, bias_change_text(t_e, change, ""), "bias change")
             return
@@ -1530,7 +1535,7 @@ class ObserverEngine:
         obs = self._observer
         assert obs is not None
         cfg = self.cfg
-        sigma_a = max(self._turn_on_ba_mps2(), GRAVITY_MPS2 * change.angle_rad)
+        sigma_a = self._reopened_ba_mps2(change)
         sigma_g = max(self._sigma_bg_rps(), change.rate_rps)
         flt = self._ba_filter
         if flt is not None and flt.started:
@@ -1542,6 +1547,11 @@ class ObserverEngine:
             self._g_learn, seeded_exponent(cfg.gyro_bias_sigma0_dps * DEG_TO_RAD, sigma_g)
         )
         return xy_reopened_text(sigma_a, sigma_g)
+
+    def _reopened_ba_mps2(self, change: BiasChange) -> float:
+        """The x/y accelerometer bias 1-sigma a tilt ``change`` re-opens: the turn-on spread,
+        or the tilt taken as a specific force if more."""
+        return max(self._turn_on_ba_mps2(), GRAVITY_MPS2 * change.angle_rad)
 
     def _reopened_z(self, change: BiasChange) -> str:
         """What the heading channel re-opened on a z bias change
