@@ -313,7 +313,7 @@ class FoundWalk:
     failing unit's drift is found as one change, its bias learnt again in the next turns,
     and the drift goes on past what the datasheet's wander lets an engine state: +20 mg over
     5 min on x or y, found 160 s in, the EKF then sent 133-2,600 more tilt frames beyond
-    0.1 deg + 3 sigma (`field` seed 680), the observer on `short` up to 1,100; none with
+    0.1 deg + 3 sigma (`field` seed 680), the observer on `short` 600-1,100; none with
     this walk. A change found again within the hold keeps the larger walk and extends it.
     Runs without a change (every run of the accuracy benchmark) are as before."""
 
