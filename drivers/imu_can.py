@@ -43,10 +43,19 @@ n is stamped ``offset + n dt - bridge_latency_s``. What is decided when, and why
   them, more if the host stalls meanwhile) were already emitted 256 m dt early, each marked
   ``timing_unknown`` (from the late SEQ gap until it is decided, either way); the times jump
   forward there, still increasing.
-- The same steady lateness with no SEQ gap is a host clock step forward (or, indistinguishably,
-  an outage of exactly 256 m samples, which is then under-counted): the anchor restarts, no loss
-  is counted. So does a backlog read steadily less than 1/16 faster than real time while over
-  half a wrap behind (within the tolerance above).
+- The host clock steps (:mod:`drivers.host_clock`): the arrivals jump by the step, the SEQ
+  goes on. Once the anchor is settled (a steady window on time since it last restarted), two
+  steady windows late by over ``clock_step_min_s`` with no SEQ gap, or one arrival of the
+  next sample early by as much, are a step of the host clock: it is added to
+  :attr:`ImuDecoder.host_clock` (from the first sample on the new clock), arrivals are taken
+  less it from then on, and the anchor and the sample times go on through it. Lateness of a
+  whole number of SEQ wraps (within 2 ms and 200 ppm) is taken for an outage of exactly 256 m
+  samples instead (its SEQ cannot tell, and a step taken for an outage costs a restart, an
+  outage taken for a step a position as old as it): the anchor restarts there, no loss
+  counted, and the sample times jump (the fusion core tells a step from the GNSS). Before the
+  anchor has settled, steady lateness over half a wrap with no SEQ gap restarts it too. A
+  backlog read steadily less than 1/16 faster than real time looks like a step forward and is
+  taken for one.
 - A change of DEC restarts the anchor from that sample's arrival.
 
 Pairing: a half (IMU_GYRO or IMU_ACCEL) waits ``pair_timeout_s`` of arrival time for its
@@ -77,6 +86,7 @@ from dbc.fast_decode import AllOf, AnyOf, LittleEndianDecoder, Lookup, Output, R
 from drivers.axis_checks import ACCEL_JUMP_MPS2, GYRO_JUMP_RPS, STUCK_SAMPLES, AxisChecks
 from drivers.errors import ErrorPolicy
 from drivers.frame_reader import FrameReader
+from drivers.host_clock import HostClock
 from drivers.log_limit import BadInput
 from drivers.logs.candump import CandumpReader, FrameFields, read_candump
 from drivers.samples import Float3, ImuAux, ImuCounters, ImuSample
@@ -162,6 +172,7 @@ class ImuCanConfig:
     reanchor_gap_s: float = 0.5  # an earlier arrival after such a gap counts as a re-anchor
     wrap_check_s: float = 0.25  # arrivals late by over half a SEQ wrap this long: missed wraps
     pair_timeout_s: float = 0.05  # a half (gyro or accel) waits this long for its partner
+    clock_step_min_s: float = 0.05  # arrivals late or early by more, steadily: a clock step
     warn_interval_s: float = 10.0  # at most one warning per kind per this much frame time
     stuck_samples: int = STUCK_SAMPLES  # an axis unchanged this many samples: stuck (0: off)
     on_error: ErrorPolicy = ErrorPolicy.LOG  # malformed frames: raise, log (and skip), ignore
@@ -181,6 +192,7 @@ class WarningKind(Enum):
     STUCK = "stuck output"
     SPIKE = "spike"
     REANCHOR = "time re-anchored"
+    CLOCK_STEP = "host clock step"
     SEQ = "SEQ discontinuity"
 
 
@@ -379,6 +391,13 @@ class ImuDecoder:
         self._prev_q = math.inf  # min q of the previous window (inf: none, or not steady)
         self._gap_late = False  # a SEQ gap since the arrivals were last within half a wrap
         self._gap_n = 0  # last index before the first such gap
+        self._settled = False  # a steady window on time since the anchor last restarted
+        self._step_min = self.config.clock_step_min_s
+        self._late_from: int | None = None  # first index of the arrivals late by a clock step
+        #: The host clock's steps found; arrival times are taken less its correction.
+        self.host_clock = HostClock()
+        self._correction = 0.0  # host_clock.correction_s, read per frame
+        self._stepped = 0.0  # a step just found: the arrival being decoded is taken less it
 
     def feed(self, msg: can.Message) -> list[ImuSample | ImuAux]:
         """Decode one frame; returns what it completes (nothing or one item)."""
@@ -426,6 +445,7 @@ class ImuDecoder:
         if entry is None:
             self.counters.ignored += 1
             return None
+        t -= self._correction
         frame, length, frame_id, unpack, expected_reserved, key = entry
         frames = self.counters.frames = self.counters.frames + 1
         pending = self._pending
@@ -470,6 +490,21 @@ class ImuDecoder:
         self._evict_stale_halves(math.inf, final=True)
 
     @property
+    def step_pending(self) -> bool:
+        """The arrivals have been late by over ``clock_step_min_s`` for less time than a step
+        forward of the host clock takes to be found (three windows): one may be found yet."""
+        late_from = self._late_from
+        return late_from is not None and (self._n_last - late_from) * self._dt < 3 * self._win_s
+
+    @property
+    def pending_step_s(self) -> float:
+        """How late the last sample arrived while :attr:`step_pending` (else 0), s: the
+        host clock may be that much ahead of the sample times not yet on its new reading."""
+        if not self.step_pending:
+            return 0.0
+        return self._a_last - self._n_last * self._dt - self._offset
+
+    @property
     def dt(self) -> float:
         """Current nominal sample period (0 before the first sample)."""
         return self._dt
@@ -506,6 +541,9 @@ class ImuDecoder:
                 if step is None:
                     return None
                 n = self._track(seq, a, step)
+        if self._stepped:
+            a -= self._stepped
+            self._stepped = 0.0
         self._n_last, self._seq_last, self._a_last = n, self._seq_taken, a
         if len(self._missing) > 512:
             self._missing = {i for i in self._missing if i > n - 256}
@@ -684,9 +722,18 @@ class ImuDecoder:
         """Update the anchor with sample ``n`` arriving at ``a``; returns n plus missed wraps."""
         q = a - n * self._dt  # the offset this arrival alone implies
         r = q - self._offset  # its lateness against the sample clock
+        step_min = self._step_min
+        if r > step_min:
+            if self._late_from is None:
+                self._late_from = n
+        else:
+            self._late_from = None
         if r < 0:
             gap = a - self._a_last
             if r < -0.5 * self._dt:
+                if r < -step_min and self._settled and n - self._n_last == 1:
+                    self._clock_step(seq, a, n, n, r)
+                    return n
                 self._anchor(a, n, q, seq, f"IMU frames {-r * 1e3:.2f} ms earlier than predicted")
                 return n
             if gap > self.config.reanchor_gap_s:
@@ -717,9 +764,20 @@ class ImuDecoder:
         normal_rate = abs(rate_error) <= tol
         self._prev_q = self._win_q if normal_rate else math.inf
         self._win_q, self._win_start, self._win_n0 = q, a, n
+        if normal_rate and abs(now) <= tol:
+            self._settled = True
         if not (normal_rate and abs(now - before) <= tol):
             return n
         late = min(now, before)
+        if (
+            late > self._step_min
+            and self._settled
+            and not self._gap_late
+            and self._late_from is not None
+            and not self._whole_wraps(late)
+        ):
+            self._clock_step(seq, a, n, self._late_from, late)
+            return n
         if late <= self._half_wrap:
             if late > 0:
                 self._offset = offset + late * min(1.0, span / self.config.anchor_tau_s)
@@ -740,11 +798,41 @@ class ImuDecoder:
         self._anchor(a, n, offset + late - shift * self._dt, seq, why)
         return n
 
+    def _whole_wraps(self, late: float) -> bool:
+        """``late`` is a whole number of SEQ wraps, within 2 ms (the arrivals' least jitter)
+        and 200 ppm of it (the IMU's clock against the host's)."""
+        wraps = round(late / (2 * self._half_wrap))
+        return wraps > 0 and abs(late - wraps * 2 * self._half_wrap) <= 0.002 + 2e-4 * late
+
+    def _clock_step(self, seq: int, a: float, n: int, n_from: int, delta: float) -> None:
+        """The host clock stepped by ``delta`` from sample ``n_from`` on (sample ``n`` arrived
+        at ``a`` on the new clock): added to :attr:`host_clock`; the anchor goes on. Late
+        arrivals had opened a window: it opens again at ``a`` on the new clock."""
+        self.host_clock.step(self._offset + n_from * self._dt - self._latency, delta)
+        self._correction = self.host_clock.correction_s
+        self._stepped = delta
+        a -= delta
+        if delta > 0:
+            self._win_start, self._win_n0, self._win_q = a, n, a - n * self._dt
+            self._prev_q = math.inf
+        self._late_from = None
+        how = "late" if delta > 0 else "early"
+        self.counters.clock_steps += 1
+        self._warn(
+            WarningKind.CLOCK_STEP,
+            a,
+            f"host clock stepped {delta:+.3f} s at IMU SEQ {seq} (arrivals {abs(delta):.3f} s "
+            f"{how} with no SEQ gap): IMU, GNSS and ISOBUS times taken less it from then on, "
+            "on one time line; expected a host clock that slews (NTP, chrony)",
+        )
+
     def _anchor(self, a: float, n: int, offset: float, seq: int, reason: str | None) -> None:
         """Restart the sample clock at ``offset`` (sample ``n`` arrived at ``a``)."""
         self._offset = offset
         self._win_start, self._win_n0, self._win_q, self._prev_q = a, n, a - n * self._dt, math.inf
         self._gap_late = False
+        self._settled = False
+        self._late_from = None
         if reason is not None:
             self.counters.reanchors += 1
             self._warn(WarningKind.REANCHOR, a, f"IMU time re-anchored at SEQ {seq}: {reason}")
@@ -772,7 +860,11 @@ class ImuDecoder:
             )
 
     def _aux(self, t: float, values: dict[str, Any]) -> ImuAux:
+        """IMU_AUX arrived at ``t``. Among samples arriving late by a clock step not yet
+        found (:attr:`pending_step_s`), it is taken as late as the last of them: its time
+        is within their span, not up to the step ahead of them."""
         self.counters.aux += 1
+        t -= self.pending_step_s
         diag = sum(int(values[n]) << bit for n, bit in self._diag_bits.items())
         if diag:
             self._warn(

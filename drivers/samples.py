@@ -162,5 +162,6 @@ class ImuCounters:
     stuck: int = 0  # samples with some axis stuck (drivers.axis_checks)
     spikes: int = 0  # samples with a triad taken for a transfer error (same): held
     reanchors: int = 0  # time anchor restarts (DEC change, early arrivals, missed SEQ wraps)
+    clock_steps: int = 0  # steps of the host clock found (drivers.host_clock)
     seq_errors: int = 0  # samples on time for the next SEQ but carrying another: taken as it
     seq_restarts: int = 0  # the bridge's SEQ counter restarted: counted from its new value

@@ -24,6 +24,12 @@ minus the configured latency in every mode.
 In every mode an epoch is placed after the last one placed, or not at all: two epochs at one
 instant, or one before the epoch before it, cannot both be right, and an engine would
 correct back in time with it (:meth:`EpochClock.epoch_time`).
+
+The core's time is the host clock less its steps (:mod:`drivers.host_clock`), so the receive
+delays go on through a step. All but one kind: a step forward by a whole number of IMU SEQ
+wraps looks to the IMU decoder exactly like an outage of that many samples, and it takes it
+for one (its times jump with the host clock's). Then the delays jump too, if it was a step:
+the next fix tells (:meth:`EpochClock.host_jumped`).
 """
 
 from __future__ import annotations
@@ -104,6 +110,7 @@ class EpochClock:
         self._least = SlidingMin(DELAY_WINDOW_S)  # every receive delay
         self._least_possible = SlidingMin(DELAY_WINDOW_S)  # those a synced host can have
         self._last_epoch_s: float | None = None  # the latest epoch placed
+        self._jump_s = 0.0  # the core's time jumped this much with the host's, maybe
         self.unordered = 0  # epochs not placed: not after the last one placed
         self._log = LogLimiter(log)
 
@@ -121,6 +128,15 @@ class EpochClock:
         :data:`RECEIVE_EPOCH_SIGMA_S`: not measured) on a free-running one or before the
         date."""
         return 0.0 if self.host_follows_utc else self.receiver_latency_sigma_s
+
+    def host_jumped(self, jump_s: float) -> None:
+        """The core's time jumped forward by ``jump_s`` with the host clock's and the IMU's
+        SEQ went on: an IMU outage of whole SEQ wraps, or a step of the host clock by as much.
+        The next fix with a UTC time tells: receive delays by over half the jump above the
+        least are the step, and the delays kept are moved by it (else an epoch on a host
+        clock that follows UTC would be placed ``jump_s`` off for a minute, and so would the
+        receive-time epochs of a free-running one)."""
+        self._jump_s = jump_s
 
     def _follows_utc(self, least_possible_s: float | None) -> bool:
         if self.mode is not EpochTime.AUTO:
@@ -161,6 +177,12 @@ class EpochClock:
         if fix.t_utc is None:
             return fix.t - self.receiver_latency_s
         delay_s = fix.t - fix.t_utc
+        if self._jump_s:
+            least = self._least.value
+            if least is not None and delay_s - least > 0.5 * self._jump_s:
+                self._least.shift(self._jump_s)
+                self._least_possible.shift(self._jump_s)
+            self._jump_s = 0.0
         least_s = self._least.add(fix.t, delay_s)
         # The least possible delay leaves out delays before the epoch (below SYNCED_DELAY_S):
         # an epoch cannot arrive before it happened on a synchronised host, so they are the
@@ -201,6 +223,10 @@ class SlidingMin:
         self._candidates.append((t, value))
         self.expire(t)
         return self._candidates[0][1]
+
+    def shift(self, delta: float) -> None:
+        """Move every value kept by ``delta`` (their order stays)."""
+        self._candidates = deque((t, value + delta) for t, value in self._candidates)
 
     def expire(self, now: float) -> None:
         """Forget the values added before ``now - window_s``."""

@@ -21,12 +21,14 @@ The IMU drives the outputs, so without it nothing would go out: when no sample h
 sends NAVGW_STATUS alone at its rate, saying FAULT with the IMU not ok and the samples missing
 in byte 6 (SPEC 4: an outage is reported, not silent). A gap of :data:`RESTART_GAP_S` or more
 restarts the engine: the motion over it is unknown, and a solution carried across it would be
-a guess. A saturated sample (an axis at the end of its register) or a stuck one (an axis's word
-unchanged sample after sample, :mod:`drivers.axis_checks`) is no measurement: it is not fed
-to the engine, NAVGW_STATUS says FAULT from that sample on, and when the IMU measures again
-the engine restarts (the rotation meanwhile is unknown: 2 s of full-scale gyro left the
-attitude 179 deg off, then above 1 deg for 35 s, while STATUS said navigating; a 10 s freeze
-left roll 4 deg off).
+a guess. Inputs come on core time, the host clock less its steps (:mod:`drivers.host_clock`); a
+step forward by whole SEQ wraps the IMU decoder takes for an outage, and the epoch clock is
+told when sample times jump with the SEQ going on. A saturated sample (an axis at the end of
+its register) or a stuck one (an axis's word unchanged sample after sample,
+:mod:`drivers.axis_checks`) is no measurement: it is not fed to the engine, NAVGW_STATUS says
+FAULT from that sample on, and when the IMU measures again the engine restarts (the rotation
+meanwhile is unknown: 2 s of full-scale gyro left the attitude 179 deg off, then above 1 deg
+for 35 s, while STATUS said navigating; a 10 s freeze left roll 4 deg off).
 A restarted engine starts from what the one it replaces had learned of the IMU's biases
 (:meth:`LearningEstimator.learned_state`, with its sigmas): the IMU is the same. An engine
 that raises (a bug some input reached) is replaced too, from cold, and NAVGW_STATUS says
@@ -61,6 +63,7 @@ import can
 
 from drivers.samples import Float3, GnssFix, ImuAux, ImuCounters, ImuSample
 from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.epoch_clock import EpochClock
 from gateway.estimation.heading_hint import HeadingHint
 from gateway.estimation.imu_noise import ImuNoiseMeter
 from gateway.estimation.solution import LearnedState, LearningEstimator, Mode, Solution
@@ -92,6 +95,10 @@ IMU_SILENT_S = 0.2
 #: A gap this long in the IMU stream, or time going back this much, restarts the engine
 #: (30 s of silence carried across put the EKF's first position 84 m off while navigating).
 RESTART_GAP_S = 1.0
+#: IMU sample times this much apart with the SEQ going on jumped with the host clock's: a
+#: step forward by whole SEQ wraps (at least 0.3125 s, at 819.2 Hz), or an outage of as many
+#: samples (:meth:`gateway.estimation.epoch_clock.EpochClock.host_jumped`).
+JUMP_S = 0.25
 #: A warm start waits this long after the first IMU sample for the IMU's temperature (the
 #: first IMU_AUX; the bridge sends it at 1 Hz), then the engine stays cold.
 WARM_START_WAIT_S = 3.0
@@ -156,11 +163,13 @@ class FusionCore:
         mounting: MountingCheck | None = None,
         lever_arm: LeverArmCheck | None = None,
         lever_arm_ant_m: Float3 = (0.0, 0.0, 0.0),
+        epoch_clock: EpochClock | None = None,
     ) -> None:
         """``track_rest``: follow the rests for the learned state (the shell keeps one);
         ``mounting``, ``lever_arm``: the checks of the IMU mounting and of the antenna lever
         arm in effect (None: none); ``lever_arm_ant_m``: the configured antenna lever arm
-        (the guard's position accuracy)."""
+        (the guard's position accuracy); ``epoch_clock``: the engines' (told when the IMU's
+        times jump with the host clock's)."""
         self.engine = engine
         self._make_engine = make_engine  # for a restart; None: the engine carries on
         self.scheduler = scheduler
@@ -186,6 +195,7 @@ class FusionCore:
         self.mounting = mounting
         self.lever_arm = lever_arm
         self._fix_to_check: GnssFix | None = None  # for the checks, with the next solution
+        self.epoch_clock = epoch_clock
 
     @classmethod
     def from_config(
@@ -241,6 +251,7 @@ class FusionCore:
             ),
             lever_arm=LeverArmCheck(config.vehicle.antenna_lever_arm_m),
             lever_arm_ant_m=config.vehicle.antenna_lever_arm_m,
+            epoch_clock=clock,
         )
 
     def start(self, now: float) -> Iterator[can.Message]:
@@ -323,6 +334,8 @@ class FusionCore:
             self._wait_for_temperature(t)
         last = self._last_sample
         gap = last is not None and abs(t - last.t) >= RESTART_GAP_S
+        if last is not None and t - last.t > JUMP_S and (sample.seq - last.seq) & 0xFF == 1:
+            self._host_jumped(t - last.t - sample.dt)
         if gap or self._unusable:
             self._restart_engine(last if gap else None, t)
         self._last_sample = sample
@@ -404,6 +417,11 @@ class FusionCore:
             self._last_unusable_log = sample.t
         self._unusable = True
         return self._counted(chain(self._timers(sample.t), self._fault(sample.t)))
+
+    def _host_jumped(self, jump_s: float) -> None:
+        """The IMU's times jumped by ``jump_s`` with the SEQ going on (:data:`JUMP_S`)."""
+        if self.epoch_clock is not None:
+            self.epoch_clock.host_jumped(jump_s)
 
     def _restart_engine(self, last: ImuSample | None, t: float) -> None:
         """A new engine after a gap since ``last`` (None: after unusable samples), seeded with

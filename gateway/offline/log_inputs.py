@@ -2,7 +2,11 @@
 
 Replay, the accuracy benchmark and tests feed engines from here, so they see exactly the
 samples and fixes the live service would: IMU samples at their reconstructed sample time,
-GNSS fixes at their host receive time (after the IMU samples that preceded them).
+GNSS fixes at their host receive time (after the IMU samples that preceded them). All on
+core time (:mod:`drivers.host_clock`): the host clock less the steps the IMU decoder found,
+which it finds within :data:`CLOCK_STEP_FOUND_S` of arrivals; the CAN inputs are decoded
+:data:`DECODE_AHEAD` or more ahead of the one handed out, so that a fix or another node's
+frame is put on core time, and the merge and the output stamps are right, across a step.
 
 Every other frame of the CAN log comes as a :class:`BusFrame`, received from the ISOBUS (SPEC
 5: by default the IMU bridge and the ISOBUS are one bus, so a recording of it holds other
@@ -24,6 +28,7 @@ from pathlib import Path
 import can
 
 from drivers.errors import InputError
+from drivers.host_clock import HostClock, HostStream, retimed
 from drivers.imu_can import ImuCanConfig, ImuDecoder
 from drivers.logs.candump import message_of, read_candump
 from drivers.logs.nmea_log import NmeaLogReader, read_nmea_log
@@ -36,10 +41,15 @@ Input = ImuSample | ImuAux | GnssFix | BusFrame
 _NAME_BYTES = 8
 _SOURCE_MASK = 0xFF
 
-#: CAN inputs decoded ahead of the consumer at most: decoding a run of frames, then fusing a
-#: run of samples, keeps each one's code and data hot (replay of the EKF on `short` 33.0 ->
-#: 30.1-30.3 us a sample, docs/PERFORMANCE.md), and memory stays flat.
-DECODE_AHEAD = 256
+#: CAN inputs decoded in one run, and at least ahead of the one handed out: decoding a run of
+#: frames, then fusing a run of samples, keeps each one's code and data hot (replay of the
+#: EKF on `short` 33.0 -> 30.1-30.3 us a sample, docs/PERFORMANCE.md), and memory stays flat.
+#: Ahead by this many, a step of the host clock is found before any input on the new clock is
+#: handed out: :data:`CLOCK_STEP_FOUND_S` of IMU samples at up to 819.2 Hz is 308 of them.
+DECODE_AHEAD = 512
+#: The IMU decoder finds a host clock step forward within this much of arrivals (three
+#: windows of ``wrap_check_s / 2``), a step back at once.
+CLOCK_STEP_FOUND_S = 0.375
 
 
 @dataclass
@@ -92,15 +102,19 @@ class LogInputs:
     def __iter__(self) -> Iterator[Input]:
         self.nmea_reader = read_nmea_log(self.nmea_log)
         gnss = read_fixes_from_log(self.nmea_reader, self.nmea_decoder)
-        return _merged(self._can_inputs(), gnss, self.imu_lost)
+        return _merged(self._can_inputs(), gnss, self.imu_lost, self.imu_decoder.host_clock)
 
     def _can_inputs(self) -> Iterator[ImuSample | ImuAux | BusFrame]:
         """IMU samples from the bridge's frames; the other nodes' frames as they are.
 
-        Decoded up to :data:`DECODE_AHEAD` inputs ahead, in order; a loss the decoder finds
-        goes with the first input decoded after it (:attr:`imu_lost`).
+        Decoded in runs of :data:`DECODE_AHEAD` inputs, each handed out once as many more are
+        decoded after it, in order; a loss the decoder finds goes with the first input decoded
+        after it (:attr:`imu_lost`). Another node's frame is put on core time as it is
+        handed out.
         """
         decoder = self.imu_decoder
+        bus_clock = decoder.host_clock.stream()
+        others = 0  # other nodes' frames decoded, not yet handed out
         feed_record = decoder.feed_record
         bridge = decoder.frame_keys
         key_mask = decoder.key_mask
@@ -121,7 +135,8 @@ class LogInputs:
                     and msg.arbitration_id & key_mask not in bridge
                     and self._from_another_node(msg)
                 ):
-                    item = BusFrame(float(msg.timestamp), msg)
+                    item = BusFrame(float(msg.timestamp), msg)  # host time until handed out
+                    others += 1
                 else:
                     item = feed_record(msg)  # the bridge's; and the others' the decoder counts
             if counters.lost != lost:
@@ -131,9 +146,12 @@ class LogInputs:
                     pending.append((item, lost))
                     loss = False
                 keep(item)
-                if len(ahead) >= DECODE_AHEAD:
-                    yield from ahead
-                    ahead.clear()
+                if len(ahead) >= 2 * DECODE_AHEAD:
+                    if others:
+                        others -= _on_core_time(ahead, DECODE_AHEAD, bus_clock, pending)
+                    yield from ahead[:DECODE_AHEAD]
+                    del ahead[:DECODE_AHEAD]
+        _on_core_time(ahead, len(ahead), bus_clock, pending)
         yield from ahead
         decoder.finish()
 
@@ -154,24 +172,57 @@ class LogInputs:
         return source != self.own_address
 
 
+def _on_core_time(
+    items: list[ImuSample | ImuAux | BusFrame],
+    count: int,
+    clock: HostStream,
+    pending: deque[tuple[object, int]],
+) -> int:
+    """Put the other nodes' frames among the first ``count`` items on core time (a loss
+    pending for one stays with it); returns how many."""
+    done = 0
+    for i in range(count):
+        item = items[i]
+        if type(item) is BusFrame:
+            items[i] = BusFrame(clock.core(item.t), item.msg)
+            for j, (first, lost) in enumerate(pending):
+                if first is item:
+                    pending[j] = (items[i], lost)
+            done += 1
+    return done
+
+
 def _merged(
     can_inputs: Iterator[ImuSample | ImuAux | BusFrame],
     fixes: Iterator[GnssFix],
     seen: SeenLoss,
+    clock: HostClock,
 ) -> Iterator[Input]:
     """The two streams merged by ``t`` as ``heapq.merge(can_inputs, fixes, key=t)`` does
     (the smaller head first, the CAN input on a tie), without a key call and a heap step per
-    item: fixes are fifty times rarer than IMU samples. A loss pending for a CAN input
-    (:class:`SeenLoss`) is told as that input goes out."""
+    item: fixes are fifty times rarer than IMU samples. A fix's host receive time is put on
+    core time with the host clock steps ``clock`` has (again when it finds one more). A
+    loss pending for a CAN input (:class:`SeenLoss`) is told as that input goes out."""
+    gnss_clock = clock.stream()
+    steps = clock.steps
     fix = next(fixes, None)
+    t_fix = 0.0 if fix is None else gnss_clock.core(fix.t)
+    known = len(steps)  # the steps t_fix was put on core time with
     pending = seen.pending
     for item in can_inputs:
-        while fix is not None and fix.t < item.t:
-            yield fix
-            fix = next(fixes, None)
+        if fix is not None:
+            if len(steps) != known:
+                t_fix, known = gnss_clock.core(fix.t), len(steps)
+            while t_fix < item.t:
+                yield retimed(fix, t_fix)
+                fix = next(fixes, None)
+                if fix is None:
+                    break
+                t_fix, known = gnss_clock.core(fix.t), len(steps)
         if pending and pending[0][0] is item:
             seen.lost = pending.popleft()[1]
         yield item
-    if fix is not None:
-        yield fix
-        yield from fixes
+    while fix is not None:
+        t_fix = gnss_clock.core(fix.t)
+        yield retimed(fix, t_fix)
+        fix = next(fixes, None)

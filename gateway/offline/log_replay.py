@@ -1,7 +1,8 @@
 """Replay (SPEC 5): recorded logs through the live fusion code, output frames to a log.
 
 The clock is the logs' host clock: each output frame is stamped with the time of the input
-that triggered it, so the same input always gives byte-identical output.
+that triggered it, so the same input always gives byte-identical output. The core runs on
+that clock less the steps it took (:mod:`drivers.host_clock`); the stamps are put back on it.
 
 With a ``state_dir`` the replay is a start of the gateway that has been running before: the
 learned state there seeds the engine (as the live service's does, by the IMU temperature of
@@ -17,6 +18,9 @@ from collections.abc import Callable, Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
 
+import can
+
+from drivers.host_clock import HostClock
 from drivers.logs.candump import CandumpWriter
 from drivers.nmea import NmeaCounters
 from drivers.samples import ImuCounters, ImuSample
@@ -76,6 +80,7 @@ def replay(
     inputs.own_name, inputs.own_address = core.claimer.name, config.isobus.preferred_address
     stream: Iterable[Input] = progress(inputs, inputs) if progress else inputs
     t_first = t_last = None
+    host_clock = inputs.imu_decoder.host_clock
     wall = time.perf_counter()
     with CandumpWriter(out_log, config.isobus.channel or config.imu.channel) as writer:
         write_all, on_input, on_imu = writer.write_all, core.on_input, core.on_imu
@@ -87,7 +92,7 @@ def replay(
             # IMU samples straight to on_imu: on_input would dispatch them there, per sample
             frames = on_imu(item) if type(item) is ImuSample else on_input(item)
             if frames is not NOTHING:  # most IMU samples send nothing
-                write_all(frames)
+                write_all(_on_host_time(frames, host_clock) if host_clock.steps else frames)
     wall = time.perf_counter() - wall
     saved = keeper is not None and keeper.save(core, force=True)
     return ReplaySummary(
@@ -101,6 +106,13 @@ def replay(
         warm_start=core.warm_started,
         state_saved=saved,
     )
+
+
+def _on_host_time(frames: Iterable[can.Message], clock: HostClock) -> Iterator[can.Message]:
+    """``frames`` stamped on core time, stamped again on the logs' host clock."""
+    for msg in frames:
+        msg.timestamp = clock.host(msg.timestamp)
+        yield msg
 
 
 def unreadable(s: ReplaySummary, can_log: str | Path, nmea_log: str | Path) -> str | None:

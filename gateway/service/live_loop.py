@@ -39,7 +39,11 @@ is fast and runs inline):
 
 Time: every time the core sees (IMU frame arrival, GNSS receive time, claim timers) goes
 through one :class:`~gateway.service.timebase.TimeBase`: the identity live, a scaled clock in the
-demo.
+demo; then, less the host clock's steps the IMU decoder has found, on the core's time
+(:mod:`drivers.host_clock`): through a step of the host clock (NTP, chrony) the IMU samples
+and the GNSS epochs stay on one time line. A fix is put on core time as it goes to the core,
+and none goes while the IMU's arrivals may yet show a step forward (late for less than
+0.375 s): on the old clock it would reach the engine a step ahead of the fixes after it.
 
 Fairness: a task that finds its queue non-empty never awaits anything that suspends, so on a
 busy host the CAN and core tasks could take turns for seconds while the serial port's reader
@@ -68,6 +72,7 @@ from drivers.backoff import Backoff
 from drivers.errors import BusError
 from drivers.frame_reader import FrameReader
 from drivers.gnss_serial import GnssSerialReader
+from drivers.host_clock import retimed
 from drivers.imu_can import PGN_SA_MASK, ImuDecoder
 from drivers.log_limit import LogLimiter
 from drivers.nmea import NmeaDecoder
@@ -247,6 +252,8 @@ class GatewayService:
         self._heartbeat = self._core_progress = time.monotonic()
         self._last_imu_t = -math.inf  # service time of the last IMU frame
         self._held: deque[GnssFix] = deque()  # fixes waiting for the IMU stream
+        self._gnss_clock = self.imu_decoder.host_clock.stream()  # their receive times
+        self._bus_clock = self.imu_decoder.host_clock.stream()  # other nodes' frames' times
         self._send_log = LogLimiter(log)
         self._stale_log = LogLimiter(log)
         self._shed_at = -math.inf  # host time of the last shedding of stale IMU frames
@@ -338,7 +345,7 @@ class GatewayService:
                         log.info("CAN %s open (%s)", link.spec, link.roles)
                         backoff.reset()
                         if link.isobus:
-                            self._send(self.core.start(self.timebase.now()))
+                            self._send(self.core.start(self.core_now()))
                         turns = Turns()
                         async for msg in reader:
                             self._on_frame(link, msg)
@@ -363,8 +370,9 @@ class GatewayService:
             item = await self.inbox.get()
             self._core_progress = time.monotonic()
             if isinstance(item, ImuSample):
-                self._release_fixes(item.t)
-                if self.timebase.now() - item.t > MAX_SAMPLE_AGE_S:
+                if not self.imu_decoder.step_pending:
+                    self._release_fixes(item.t)
+                if self.core_now() - self.imu_decoder.pending_step_s - item.t > MAX_SAMPLE_AGE_S:
                     self.stats.stale_samples += 1
                     self.core.stats.imu_dropped += 1
                     self._stale_log.warning(
@@ -385,15 +393,17 @@ class GatewayService:
             self.mounting.feed(item)
 
     def _release_fixes(self, before: float) -> None:
-        """Feed the held GNSS fixes older than ``before`` (service time) to the core.
+        """Feed the held GNSS fixes older than ``before`` (core time) to the core, each put
+        on core time as it goes.
 
         The core gets its inputs in time order, as replay merges them: a fix read before the
         IMU frames of the same instant have been through the loop waits for them (normally
         less than one IMU period; at most HOLD_MAX_S while the IMU is silent), and one read
         after them goes in before the next sample.
         """
-        while self._held and self._held[0].t < before:
-            self.process(self._held.popleft())
+        held, clock = self._held, self._gnss_clock
+        while held and (t := clock.core(held[0].t)) < before:
+            self.process(retimed(held.popleft(), t))
 
     async def _run_tick(self) -> None:
         while True:
@@ -405,8 +415,13 @@ class GatewayService:
         """What the loop does without IMU input (service time ``now``): the core's timers, and
         FAULT once the IMU is silent; fixes held for the IMU go in."""
         if now - self._last_imu_t >= TICK_S and not self._imu_pending():
+            now -= self.imu_decoder.host_clock.correction_s
             self._send(self.core.poll(now))
             self._release_fixes(now - HOLD_MAX_S)
+
+    def core_now(self) -> float:
+        """The core's time now: service time less the host clock's steps found."""
+        return self.timebase.now() - self.imu_decoder.host_clock.correction_s
 
     def _imu_pending(self) -> bool:
         """IMU input waits in a reader or the inbox: the loop is behind its input, and the
@@ -505,7 +520,7 @@ class GatewayService:
                 if self.inbox.offer(item):
                     self.core.stats.imu_dropped += 1
         elif link.isobus and not self.echo.is_echo(msg, host_time):
-            self._send(self.core.on_bus_frame(msg, msg.timestamp))
+            self._send(self.core.on_bus_frame(msg, self._bus_clock.core(msg.timestamp)))
 
     def _is_imu(self, msg: can.Message) -> bool:
         """True for a frame of the IMU bridge's (its ids, any source address)."""
