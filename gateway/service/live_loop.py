@@ -465,14 +465,14 @@ class GatewayService:
         period = min(STATUS_INTERVAL_S, watchdog_s or math.inf)
         next_status = time.monotonic() + STATUS_INTERVAL_S
         claim, mode = self.core.claimer.state, self._mode()
-        mark = (self.timebase.now(), self.core.stats.imu_samples)
+        mark = (self.core_now(), self.core.stats.imu_samples)
         while True:
             await asyncio.sleep(period)
             if watchdog_s is not None and self.healthy():
                 self.notifier.watchdog()
             if time.monotonic() >= next_status:
                 next_status += STATUS_INTERVAL_S
-                now, samples = self.timebase.now(), self.core.stats.imu_samples
+                now, samples = self.core_now(), self.core.stats.imu_samples
                 self.stats.imu_rate_hz = (samples - mark[1]) / max(now - mark[0], 1e-9)
                 mark = (now, samples)
                 line = self.status_line()
@@ -484,7 +484,7 @@ class GatewayService:
             if self._mode() is not mode:
                 mode = self._mode()
                 log.info("mode %s", mode.name.lower())
-            if self.mounting is not None and (text := self.mounting.update(self.timebase.now())):
+            if self.mounting is not None and (text := self.mounting.update(self.core_now())):
                 log.info("%s", text)
 
     # --- frames in and out ----------------------------------------------------------------
