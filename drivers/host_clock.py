@@ -100,5 +100,6 @@ class HostStream:
 
 
 def retimed(fix: GnssFix, t_s: float) -> GnssFix:
-    """``fix`` received at core time ``t_s`` (itself if that is its time already)."""
-    return fix if t_s == fix.t else replace(fix, t=t_s)
+    """``fix``, received at host time ``fix.t``, at core time ``t_s`` (itself if that is
+    its time already), the difference kept as its ``host_offset_s``."""
+    return fix if t_s == fix.t else replace(fix, t=t_s, host_offset_s=fix.t - t_s)

@@ -48,10 +48,11 @@ n is stamped ``offset + n dt - bridge_latency_s``. What is decided when, and why
   steady windows late by over ``clock_step_min_s`` with no SEQ gap, or one arrival of the
   next sample early by as much, are a step of the host clock: it is added to
   :attr:`ImuDecoder.host_clock` (from the first sample on the new clock), arrivals are taken
-  less it from then on, and the anchor and the sample times go on through it. Lateness of a
-  whole number of SEQ wraps (within 2 ms and 200 ppm) is taken for an outage of exactly 256 m
-  samples instead (its SEQ cannot tell, and a step taken for an outage costs a restart, an
-  outage taken for a step a position as old as it): the anchor restarts there, no loss
+  less it from then on, and the anchor and the sample times go on through it. Lateness over
+  an hour is the clock being set (:data:`CLOCK_SET_S`); lateness of a whole number of SEQ
+  wraps (within 2 ms and 200 ppm of up to a minute) is taken for an outage of exactly 256 m
+  samples (its SEQ cannot tell, and a step taken for an outage costs a restart, an outage
+  taken for a step a position as old as it). Either way the anchor restarts there, no loss
   counted, and the sample times jump (the fusion core tells a step from the GNSS). Before the
   anchor has settled, steady lateness over half a wrap with no SEQ gap restarts it too. A
   backlog read steadily less than 1/16 faster than real time looks like a step forward and is
@@ -99,6 +100,10 @@ ADIS_CLOCK_HZ = 819.2
 #: 1 g as the accelerometer's mg LSB uses it (SPEC 1).
 #: The bits of a 29-bit id that a frame is matched on: PGN and source address, not priority.
 PGN_SA_MASK = 0x03FFFFFF
+#: Arrivals later than this with no SEQ gap are the host clock being set (at boot, from a
+#: clock months off), not a step to take out: the IMU's anchor restarts on the new clock, so
+#: that the core's time, and the time the learned state is saved with, are the host's.
+CLOCK_SET_S = 3600.0
 #: No mounting rotation: IMU axes are the body axes.
 IDENTITY = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0), (0.0, 0.0, 1.0))
 _SI_PER_UNIT = {"deg/s": DEG_TO_RAD, "g": GRAVITY_MPS2, "degC": 1.0, "V": 1.0}
@@ -392,6 +397,7 @@ class ImuDecoder:
         self._gap_late = False  # a SEQ gap since the arrivals were last within half a wrap
         self._gap_n = 0  # last index before the first such gap
         self._settled = False  # a steady window on time since the anchor last restarted
+        self._sample_frame = 0  # counters.frames when the last sample was emitted
         self._step_min = self.config.clock_step_min_s
         self._late_from: int | None = None  # first index of the arrivals late by a clock step
         #: The host clock's steps found; arrival times are taken less its correction.
@@ -550,6 +556,7 @@ class ImuDecoder:
         alarm = g[_ALARM] or f[_ALARM]
         saturated = g[_SATURATED] or f[_SATURATED]
         c.samples += 1
+        self._sample_frame = c.frames
         if alarm:
             c.alarms += 1
             self._warn(
@@ -770,7 +777,7 @@ class ImuDecoder:
             return n
         late = min(now, before)
         if (
-            late > self._step_min
+            self._step_min < late < CLOCK_SET_S
             and self._settled
             and not self._gap_late
             and self._late_from is not None
@@ -800,9 +807,11 @@ class ImuDecoder:
 
     def _whole_wraps(self, late: float) -> bool:
         """``late`` is a whole number of SEQ wraps, within 2 ms (the arrivals' least jitter)
-        and 200 ppm of it (the IMU's clock against the host's)."""
+        and 200 ppm of up to a minute of it (the IMU's clock against the host's over an
+        outage the bridge's SEQ counted through)."""
         wraps = round(late / (2 * self._half_wrap))
-        return wraps > 0 and abs(late - wraps * 2 * self._half_wrap) <= 0.002 + 2e-4 * late
+        tolerance = 0.002 + 2e-4 * min(late, 60.0)
+        return wraps > 0 and abs(late - wraps * 2 * self._half_wrap) <= tolerance
 
     def _clock_step(self, seq: int, a: float, n: int, n_from: int, delta: float) -> None:
         """The host clock stepped by ``delta`` from sample ``n_from`` on (sample ``n`` arrived
@@ -860,11 +869,14 @@ class ImuDecoder:
             )
 
     def _aux(self, t: float, values: dict[str, Any]) -> ImuAux:
-        """IMU_AUX arrived at ``t``. Among samples arriving late by a clock step not yet
-        found (:attr:`pending_step_s`), it is taken as late as the last of them: its time
-        is within their span, not up to the step ahead of them."""
+        """IMU_AUX arrived at ``t``. Sent among the samples (a frame before it completed
+        one), it is put on their clock: a step of the host clock not yet found, or a stall,
+        moves its arrival, not its time (the first frame after a step at 45 s, it had put the
+        core 3 h ahead, FAULT, and back)."""
         self.counters.aux += 1
-        t -= self.pending_step_s
+        if self._dec is not None and self.counters.frames - self._sample_frame <= _PAIR_MIN_FRAMES:
+            last = self._offset + self._n_last * self._dt
+            t = min(max(t, last), last + self._dt + self._step_min)
         diag = sum(int(values[n]) << bit for n, bit in self._diag_bits.items())
         if diag:
             self._warn(

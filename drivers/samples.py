@@ -113,6 +113,9 @@ class GnssFix:
     # GGA talker id (GP, GL, GA, GB, GN, ...): the systems used; None if the epoch's GGAs
     # have several (one per system)
     talker: str | None = None
+    # host time less ``t``: the host clock's steps taken out of the receive time, s
+    # (drivers.host_clock; 0 while it has not stepped)
+    host_offset_s: float = 0.0
 
     @property
     def position_sigma_m(self) -> tuple[float, float, float] | None:

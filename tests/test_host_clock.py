@@ -12,6 +12,7 @@ beyond from the EKF.
 from __future__ import annotations
 
 import re
+from dataclasses import replace
 from pathlib import Path
 
 import can
@@ -24,6 +25,7 @@ from drivers.samples import FixQuality, GnssFix, ImuSample
 from gateway.cli.cmd_replay import summary_text
 from gateway.config.gateway_config import Engine, load_config
 from gateway.estimation.epoch_clock import EpochClock, EpochTime
+from gateway.estimation.solution import Mode
 from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SCENARIOS, generate
 from sim_bus.truth import Truth
@@ -112,6 +114,16 @@ def test_a_step_of_whole_seq_wraps_is_taken_for_an_outage() -> None:
     assert np.abs(err[-100:] - 4 * WRAP_S).max() < 1e-3
 
 
+def test_a_clock_set_hours_forward_is_taken_into_the_core_s_time() -> None:
+    """A day ahead (an ECU's clock set at boot): the IMU's anchor restarts on the new clock,
+    so that the core's time, and what the learned state is saved with, are the host's."""
+    out, _ = stream(6.0)
+    dec, samples = decoded(stepped(86400.3))
+    assert (dec.counters.clock_steps, dec.counters.reanchors) == (0, 1)
+    err = np.array([s.t for s in samples]) - out.t
+    assert np.abs(err[-100:] - 86400.3).max() < 1e-3
+
+
 def test_a_step_before_the_anchor_has_settled_restarts_it() -> None:
     # -0.3 s at the 10th sample, before a steady window: the start's anchor may be late
     dec, _ = decoded(stepped(-0.3, at=10))
@@ -148,33 +160,78 @@ def fixes(delays: list[float], t0: float = 1000.0) -> list[GnssFix]:
     ]
 
 
-@pytest.mark.parametrize("step", [True, False], ids=["clock-step", "outage"])
-def test_a_jump_the_imu_took_moves_the_receive_delays_if_they_jumped_too(step: bool) -> None:
-    """The IMU decoder takes a step of whole SEQ wraps for an outage: the core's time jumps
-    with the host's. A step moves the receive delays too: the delays kept move with them,
-    else the host would be taken to follow UTC for a minute and each epoch placed 5 s off
-    the IMU's samples. After a real outage they stay."""
+@pytest.mark.parametrize(
+    ("jump_s", "step"),
+    [(5.0, True), (5.0, False), (-5.0, True)],
+    ids=["clock-step", "outage", "clock-step-back"],
+)
+def test_a_jump_the_imu_took_moves_the_receive_delays_if_they_jumped_too(
+    jump_s: float, *, step: bool
+) -> None:
+    """The IMU decoder takes a step of whole SEQ wraps for an outage, and a step before its
+    anchor has settled restarts the anchor: the core's time jumps with the host's. A step
+    moves the receive delays too, and the delays kept and the last epoch placed move with
+    them: else the host would be taken to follow UTC for a minute and each epoch placed 5 s
+    off the IMU's samples, or, after a step back, every epoch dropped as out of order for
+    5 s. After a real outage they stay."""
     clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.05)
     before = fixes([0.08] * 50)
     assert all(clock.epoch_time(f) == f.t_utc for f in before)
-    clock.host_jumped(5.0)
-    jump = 5.0 if step else 0.0
-    after = fixes([0.08 + jump] * 10, t0=1006.0)
+    clock.host_jumped(jump_s)
+    moved = jump_s if step else 0.0
+    after = fixes([0.08 + moved] * 10, t0=1006.0)
     placed = [clock.epoch_time(f) for f in after]
-    assert clock.host_follows_utc is not step
-    expected = [1006.0 + 0.1 * i + (5.08 - 0.05 if step else 0.0) for i in range(10)]
+    assert clock.host_follows_utc is not step  # the host is 5 s off UTC after the step
+    expected = [1006.0 + 0.1 * i + (moved + 0.08 - 0.05 if step else 0.0) for i in range(10)]
     assert placed == pytest.approx(expected)
+    assert clock.unordered == 0
+
+
+def stepped_fixes(delay_s: float, host_offset_s: float, t0: float, n: int = 10) -> list[GnssFix]:
+    """10 Hz fixes ``delay_s`` after their UTC epoch on core time, with the host clock
+    ``host_offset_s`` ahead of the core's (the steps taken out)."""
+    return [replace(f, host_offset_s=host_offset_s) for f in fixes([delay_s] * n, t0=t0)]
+
+
+@pytest.mark.parametrize(
+    ("core_delay_s", "step_s", "on_host"),
+    [
+        (-3.63, 3.7, True),  # the host ran 3.7 s behind UTC, then NTP set it
+        (3.77, -3.7, True),  # ahead, set back
+        (0.07, 0.3, False),  # the host followed UTC, and stepped off it: the core still does
+        (0.07, -0.3, False),
+    ],
+)
+def test_the_clock_that_follows_utc_after_a_step_places_the_epochs(
+    core_delay_s: float, step_s: float, *, on_host: bool
+) -> None:
+    """After a step taken out of the core's time, either clock may follow UTC: the host's
+    if NTP set it (its delays now a receiver's), the core's if it followed UTC before the
+    step and the host's was stepped off it. A clock ahead only adds to its delays: of two
+    that look synchronised, the lesser delay's. The epoch goes at its UTC on that clock."""
+    clock = EpochClock(EpochTime.AUTO, receiver_latency_s=0.05)
+    before = stepped_fixes(core_delay_s, 0.0, t0=1000.0, n=50)
+    placed = [clock.epoch_time(f) for f in before]
+    assert clock.host_follows_utc is (core_delay_s == 0.07)
+    after = stepped_fixes(core_delay_s, step_s, t0=1006.0)
+    placed = [clock.epoch_time(f) for f in after]
+    assert clock.host_follows_utc
+    shift = step_s if on_host else 0.0
+    assert placed == pytest.approx([f.t_utc - shift for f in after])  # type: ignore[operator]
 
 
 @pytest.fixture(scope="module")
 def drive(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    out = tmp_path_factory.mktemp("clock-step")
-    generate(SCENARIOS["short"], out, seed=5)
-    return out
+    """`short` seed 5: its logs, truth and config."""
+    run = generate(SCENARIOS["short"], tmp_path_factory.mktemp("clock-step"), seed=5)
+    return run.imu_log.parent
 
 
-def with_clock_step(src: Path, dst: Path, at_s: float, step_s: float) -> Path:
-    """``src`` with its host stamps ``step_s`` later from ``at_s`` after its first."""
+def with_clock_step(
+    src: Path, dst: Path, at_s: float, step_s: float, before_s: float = 0.0
+) -> Path:
+    """``src`` with its host stamps ``before_s`` off until ``at_s`` after its first, then
+    ``step_s`` more."""
     lines = src.read_text().splitlines()
     t0 = float(STAMP_LINE.match(lines[0]).group(1))  # type: ignore[union-attr]
     out = []
@@ -182,7 +239,7 @@ def with_clock_step(src: Path, dst: Path, at_s: float, step_s: float) -> Path:
         m = STAMP_LINE.match(line)
         assert m is not None
         t = float(m.group(1))
-        out.append(f"({t + (step_s if t - t0 >= at_s else 0.0):.6f}){m.group(2)}")
+        out.append(f"({t + before_s + (step_s if t - t0 >= at_s else 0.0):.6f}){m.group(2)}")
     dst.write_text("\n".join(out) + "\n")
     return dst
 
@@ -209,19 +266,26 @@ def on_first_clock(log: Path, dst: Path, t_step: float, step_s: float) -> Path:
     return dst
 
 
-@pytest.mark.parametrize("step_s", [0.3, -1.0, 5.0], ids=["+0.3s", "-1s", "+5s-whole-wraps"])
+@pytest.mark.parametrize(
+    ("step_s", "before_s"),
+    [(0.3, 0.0), (-1.0, 0.0), (5.0, 0.0), (3.7, -3.7)],
+    ids=["+0.3s", "-1s", "+5s-whole-wraps", "set-to-utc+3.7s"],
+)
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF], ids=["observer", "ekf"])
 def test_no_frame_lies_across_a_host_clock_step(
-    drive: Path, engine: Engine, step_s: float, tmp_path: Path
+    drive: Path, engine: Engine, step_s: float, before_s: float, tmp_path: Path
 ) -> None:
     """The host clock steps 100 s into `short` (both logs; on the fifth pass) and replay
     stamps its frames on the host clock, as the logs are: on the new clock from the step on.
     Taken back to the first clock, no frame is beyond its stated accuracy or implausible
     (the independent ``nmea2000`` decoder). A step of whole SEQ wraps restarts the engine
-    (taken for an outage); any other goes through."""
+    (taken for an outage); any other goes through. A host clock 3.7 s behind UTC that NTP
+    sets right (`set-to-utc`) has its epochs at their UTC from then on: the observer, which
+    cannot learn a free clock's epoch error, says NAVIGATING again (it stayed DEGRADED
+    while the core's time, the old clock's, was taken to be the only one)."""
     at_s = 100.0
-    imu = with_clock_step(drive / "imu.log", tmp_path / "imu.log", at_s, step_s)
-    gnss = with_clock_step(drive / "gnss.nmea", tmp_path / "gnss.nmea", at_s, step_s)
+    imu = with_clock_step(drive / "imu.log", tmp_path / "imu.log", at_s, step_s, before_s)
+    gnss = with_clock_step(drive / "gnss.nmea", tmp_path / "gnss.nmea", at_s, step_s, before_s)
     config = load_config(drive / "navgw.toml").with_engine(engine)
     summary = replay(imu, gnss, tmp_path / "out.log", config)
     whole_wraps = step_s == 5.0
@@ -234,11 +298,16 @@ def test_no_frame_lies_across_a_host_clock_step(
     jumps = np.flatnonzero(np.abs(gaps) > 0.2)
     assert len(jumps) == 1 and gaps[jumps[0]] == pytest.approx(step_s, abs=0.25)
     assert sent[-1] == pytest.approx(stamps(imu)[-1], abs=0.1)  # on the host clock
-    t_step = stamps(drive / "imu.log")[0] + at_s
+    t_step = stamps(drive / "imu.log")[0] + before_s + at_s
     first = on_first_clock(tmp_path / "out.log", tmp_path / "first.log", t_step, step_s)
     truth = Truth.load(drive / "truth.npz")
+    truth = replace(truth, t=truth.t + before_s)
+    if before_s:
+        after = [mode for t, mode in status_modes(first) if t > t_step + 5.0]
+        assert after and all(mode == Mode.NAVIGATING for mode in after), set(after)
     checked, beyond = tilt_beyond_stated(first, truth)
-    assert checked > 4500 and not beyond, "\n".join(beyond[:10])
+    # (a free clock: the observer DEGRADED on the move before the step, its tilt not stated)
+    assert checked > (2500 if before_s else 4500) and not beyond, "\n".join(beyond[:10])
     _, off = heading_beyond_navigating(first, truth)
     assert not off, "\n".join(off[:10])
     _, far = position_beyond_mode(first, truth)

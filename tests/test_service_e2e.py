@@ -265,23 +265,21 @@ def check_final_mode(service: GatewayService, out_log: Path, truth: Truth, kept_
     assert ok, (final, held_s, service.imu_decoder.counters, service.stats)
 
 
-def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Path) -> None:
-    """The service object on virtual buses at 8x; its recording replays to the same frames."""
-    truth = Truth.load(run_dir / "truth.npz")
-    out_log = tmp_path / "live.log"
-    service = serve_in_process(run_dir, tmp_path, out_log)
+def check_live_run(service: GatewayService, out_log: Path, truth: Truth) -> list[Decoded]:
+    """What a run of :func:`serve_in_process` sent (``out_log``), checked: returns it decoded.
+
+    Nothing implausible; every sample accounted for. 8x magnifies the host's stalls 8 times:
+    a loaded host may make the service shed stale samples, each gap DEGRADED for a while, a
+    long one a new alignment: then it sends fewer frames, and says so, but no wrong one;
+    else it navigates to the end at 50 Hz. What it sent is within the accuracy it stated,
+    loaded or not (a few frames may be beyond 3 sigma by chance); one that fell behind may
+    have re-aligned on the move, and then said it was less accurate: it is held to accuracy
+    only if it kept up."""
     live = decode_log(out_log)
     check_plausible(live, truth, speed=8.0, log=out_log)
-    imu, core = service.imu_decoder.counters, service.core.stats
     kept_up = check_accounted(service)
-    # 8x magnifies the host's stalls 8 times: a loaded host may make the service shed stale
-    # samples, each gap DEGRADED for a while, a long one a new alignment: then it sends fewer
-    # frames, and says so, but no wrong one; else it navigates to the end
     check_final_mode(service, out_log, truth, kept_up)
     check_output(live, truth, 80.0 - 0.5, speed=8.0, kept_up=kept_up)
-    # what it sent is within the accuracy it stated, loaded or not (a few frames may be beyond
-    # 3 sigma by chance); one that fell behind may have re-aligned on the move, and then said
-    # it was less accurate: it is held to accuracy only if it kept up
     checked, beyond = tilt_beyond_stated(out_log, truth, lag_s=MAX_GAP_WALL_S * 8.0)
     assert checked > 500 and len(beyond) <= 0.005 * checked, beyond[:20]
     if kept_up:
@@ -289,6 +287,16 @@ def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Pa
         rms = np.sqrt(np.mean(err[np.isfinite(err[:, :2]).all(axis=1)] ** 2, axis=0))
         assert rms[0] < 1.0 and rms[1] < 1.0, rms  # roll, pitch (live, 8x the host's jitter)
         assert np.nanmedian(position_errors_m(live, truth, after_s=ALIGNED_S)) < 1.0
+    return live
+
+
+def test_in_process_on_virtual_faster_than_real_time(run_dir: Path, tmp_path: Path) -> None:
+    """The service object on virtual buses at 8x; its recording replays to the same frames."""
+    truth = Truth.load(run_dir / "truth.npz")
+    out_log = tmp_path / "live.log"
+    service = serve_in_process(run_dir, tmp_path, out_log)
+    live = check_live_run(service, out_log, truth)
+    imu, core = service.imu_decoder.counters, service.core.stats
 
     # the recording replays with navgw replay and the service's config, to the frames the
     # live service sent (without the config's 3 m antenna mast it went 2 deg off)
@@ -356,15 +364,7 @@ def test_in_process_through_steps_of_the_host_clock(
     # at 8x a host's pause of 12 ms is 0.1 s of receive delay: the least rises under load
     assert least[0] - 0.05 <= least[1] <= least[0] + 0.15, least
     assert least[0] - 0.05 <= least[2] <= least[0] + 0.15, least
-    live = decode_log(out_log)
-    check_plausible(live, truth, speed=8.0, log=out_log)
-    kept_up = check_accounted(service)
-    check_final_mode(service, out_log, truth, kept_up)
-    check_output(live, truth, 80.0 - 0.5, speed=8.0, kept_up=kept_up)
-    checked, beyond = tilt_beyond_stated(out_log, truth, lag_s=MAX_GAP_WALL_S * 8.0)
-    assert checked > 500 and len(beyond) <= 0.005 * checked, beyond[:20]
-    if kept_up:
-        assert np.nanmedian(position_errors_m(live, truth, after_s=ALIGNED_S)) < 1.0
+    check_live_run(service, out_log, truth)
 
 
 @pytest.fixture(scope="module")

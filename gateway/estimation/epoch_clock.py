@@ -26,10 +26,14 @@ instant, or one before the epoch before it, cannot both be right, and an engine 
 correct back in time with it (:meth:`EpochClock.epoch_time`).
 
 The core's time is the host clock less its steps (:mod:`drivers.host_clock`), so the receive
-delays go on through a step. All but one kind: a step forward by a whole number of IMU SEQ
-wraps looks to the IMU decoder exactly like an outage of that many samples, and it takes it
-for one (its times jump with the host clock's). Then the delays jump too, if it was a step:
-the next fix tells (:meth:`EpochClock.host_jumped`).
+delays go on through a step, and either clock may be the one that follows UTC: the host's
+before the step, or after it (NTP setting a clock that ran free). Each clock's least possible
+delay is kept (the host's from the core's delays and the steps, ``GnssFix.host_offset_s``);
+a clock ahead of UTC only adds to its delays, so of two that look synchronised the one with
+the lesser delay is taken, and an epoch is placed at its UTC on that clock. A step forward
+by a whole number of IMU SEQ wraps looks to the IMU decoder exactly like an outage of that
+many samples, and it takes it for one (its times jump with the host clock's). Then the
+delays jump too, if it was a step: the next fix tells (:meth:`EpochClock.host_jumped`).
 """
 
 from __future__ import annotations
@@ -107,8 +111,12 @@ class EpochClock:
         self.mode = mode
         self.receiver_latency_s = receiver_latency_s
         self.receiver_latency_sigma_s = receiver_latency_sigma_s
+        # Receive delays on core time; the host's are these plus host_offset_s.
         self._least = SlidingMin(DELAY_WINDOW_S)  # every receive delay
-        self._least_possible = SlidingMin(DELAY_WINDOW_S)  # those a synced host can have
+        self._least_possible = SlidingMin(DELAY_WINDOW_S)  # those a synced core clock can have
+        self._host_possible = SlidingMin(DELAY_WINDOW_S)  # those a synced host clock can have
+        self._recent: deque[tuple[float, float]] = deque()  # (t, delay) of the window
+        self._host_offset_s = 0.0  # host time less core time, the latest fix's
         self._last_epoch_s: float | None = None  # the latest epoch placed
         self._jump_s = 0.0  # the core's time jumped this much with the host's, maybe
         self.unordered = 0  # epochs not placed: not after the last one placed
@@ -116,10 +124,11 @@ class EpochClock:
 
     @property
     def host_follows_utc(self) -> bool | None:
-        """Whether the host clock follows UTC, as the mode and the delays say (None: no date)."""
+        """Whether the host clock follows UTC, or did before the steps taken out of the
+        core's time, as the mode and the delays say (None: no date)."""
         if self._least.value is None:
             return None
-        return self._follows_utc(self._least_possible.value)
+        return self._utc_clock() is not None
 
     @property
     def epoch_sigma_s(self) -> float:
@@ -130,18 +139,36 @@ class EpochClock:
         return 0.0 if self.host_follows_utc else self.receiver_latency_sigma_s
 
     def host_jumped(self, jump_s: float) -> None:
-        """The core's time jumped forward by ``jump_s`` with the host clock's and the IMU's
-        SEQ went on: an IMU outage of whole SEQ wraps, or a step of the host clock by as much.
-        The next fix with a UTC time tells: receive delays by over half the jump above the
-        least are the step, and the delays kept are moved by it (else an epoch on a host
+        """The core's time jumped by ``jump_s`` with the host clock's and the IMU's SEQ went
+        on: forward, an IMU outage of whole SEQ wraps, or a step of the host clock by as much;
+        back, a step before the IMU's anchor had settled. The next fix with a UTC time tells:
+        a receive delay moved from the least by over half the jump, its way, is the step, and
+        the delays kept and the last epoch placed are moved by it (else an epoch on a host
         clock that follows UTC would be placed ``jump_s`` off for a minute, and so would the
-        receive-time epochs of a free-running one)."""
+        receive-time epochs of a free-running one; after a step back every epoch would be
+        dropped as out of order for as long as it went back)."""
         self._jump_s = jump_s
 
-    def _follows_utc(self, least_possible_s: float | None) -> bool:
+    def _utc_clock(self) -> tuple[float, float | None] | None:
+        """The clock that follows UTC, as (its time less core time, its least possible
+        delay on core time), or None: the host's if the mode is ``utc``; in ``auto`` the
+        core's or the host's (they differ after a step), whichever looks synchronised, the
+        one with the lesser delay if both do."""
         if self.mode is not EpochTime.AUTO:
-            return self.mode is EpochTime.UTC
-        return least_possible_s is not None and least_possible_s <= SYNCED_DELAY_S[1]
+            if self.mode is EpochTime.RECEIVE:
+                return None
+            host = self._host_possible if self._host_offset_s else self._least_possible
+            return self._host_offset_s, host.value
+        core_s = self._least_possible.value
+        synced = SYNCED_DELAY_S[1]
+        core = None if core_s is None or core_s > synced else (0.0, core_s)
+        offset_s = self._host_offset_s
+        host_s = self._host_possible.value if offset_s else None
+        if host_s is None or host_s + offset_s > synced:
+            return core
+        if core is not None and core_s is not None and core_s <= host_s + offset_s:
+            return core
+        return offset_s, host_s
 
     def epoch_time(self, fix: GnssFix) -> float | None:
         """Epoch instant of ``fix`` on the host clock, s; None if it would not be after the
@@ -179,28 +206,61 @@ class EpochClock:
         delay_s = fix.t - fix.t_utc
         if self._jump_s:
             least = self._least.value
-            if least is not None and delay_s - least > 0.5 * self._jump_s:
-                self._least.shift(self._jump_s)
-                self._least_possible.shift(self._jump_s)
+            if least is not None and (delay_s - least) / self._jump_s > 0.5:
+                self._shift(self._jump_s)
+                if self._last_epoch_s is not None:
+                    self._last_epoch_s += self._jump_s
             self._jump_s = 0.0
+        if fix.host_offset_s != self._host_offset_s:
+            self._host_offset_s = fix.host_offset_s
+            self._rebuild_possible()
+        recent = self._recent
+        recent.append((fix.t, delay_s))
+        while recent[0][0] < fix.t - DELAY_WINDOW_S:
+            recent.popleft()
         least_s = self._least.add(fix.t, delay_s)
         # The least possible delay leaves out delays before the epoch (below SYNCED_DELAY_S):
         # an epoch cannot arrive before it happened on a synchronised host, so they are the
         # receiver's UTC jumping ahead for a while (a firmware glitch, a leap second), or a
         # host clock behind UTC, whose every delay is one.
-        if delay_s >= SYNCED_DELAY_S[0]:
-            self._least_possible.add(fix.t, delay_s)
-        else:
-            self._least_possible.expire(fix.t)
-        least_possible_s = self._least_possible.value
-        if not self._follows_utc(least_possible_s):
+        self._add_possible(fix.t, delay_s)
+        clock = self._utc_clock()
+        if clock is None:
             return fix.t_utc + least_s - self.receiver_latency_s
+        offset_s, least_possible_s = clock
+        t_utc = fix.t_utc - offset_s  # the epoch's UTC on core time
         last = self._last_epoch_s
         if least_possible_s is not None and (
-            delay_s < SYNCED_DELAY_S[0] or (last is not None and fix.t_utc <= last)
+            delay_s + offset_s < SYNCED_DELAY_S[0] or (last is not None and t_utc <= last)
         ):
             return fix.t - least_possible_s
-        return fix.t_utc
+        return t_utc
+
+    def _shift(self, jump_s: float) -> None:
+        """Move the delays kept by ``jump_s``: the core's time jumped with the host clock's."""
+        self._least.shift(jump_s)
+        self._recent = deque((t, d + jump_s) for t, d in self._recent)
+        self._rebuild_possible()
+
+    def _rebuild_possible(self) -> None:
+        """The least possible delays of the core's and the host's clocks again, from the
+        delays of the window (:meth:`_place`), after a step moved them."""
+        self._least_possible = SlidingMin(DELAY_WINDOW_S)
+        self._host_possible = SlidingMin(DELAY_WINDOW_S)
+        for t, d in self._recent:
+            self._add_possible(t, d)
+
+    def _add_possible(self, t: float, delay_s: float) -> None:
+        """Receive delay ``delay_s`` (core time) at ``t`` to the least possible delays of the
+        clocks it is possible on: not before the epoch (module docstring, ``_place``)."""
+        for possible, offset_s in (
+            (self._least_possible, 0.0),
+            (self._host_possible, self._host_offset_s),
+        ):
+            if delay_s + offset_s >= SYNCED_DELAY_S[0]:
+                possible.add(t, delay_s)
+            else:
+                possible.expire(t)
 
 
 class SlidingMin:

@@ -95,9 +95,10 @@ IMU_SILENT_S = 0.2
 #: A gap this long in the IMU stream, or time going back this much, restarts the engine
 #: (30 s of silence carried across put the EKF's first position 84 m off while navigating).
 RESTART_GAP_S = 1.0
-#: IMU sample times this much apart with the SEQ going on jumped with the host clock's: a
-#: step forward by whole SEQ wraps (at least 0.3125 s, at 819.2 Hz), or an outage of as many
-#: samples (:meth:`gateway.estimation.epoch_clock.EpochClock.host_jumped`).
+#: IMU sample times this much apart, either way, with the SEQ going on jumped with the host
+#: clock's: a step forward by whole SEQ wraps (at least 0.3125 s, at 819.2 Hz) or an outage
+#: of as many samples, or a step before the IMU's anchor had settled
+#: (:meth:`gateway.estimation.epoch_clock.EpochClock.host_jumped`).
 JUMP_S = 0.25
 #: A warm start waits this long after the first IMU sample for the IMU's temperature (the
 #: first IMU_AUX; the bridge sends it at 1 Hz), then the engine stays cold.
@@ -334,7 +335,7 @@ class FusionCore:
             self._wait_for_temperature(t)
         last = self._last_sample
         gap = last is not None and abs(t - last.t) >= RESTART_GAP_S
-        if last is not None and t - last.t > JUMP_S and (sample.seq - last.seq) & 0xFF == 1:
+        if last is not None and abs(t - last.t) > JUMP_S and (sample.seq - last.seq) & 0xFF == 1:
             self._host_jumped(t - last.t - sample.dt)
         if gap or self._unusable:
             self._restart_engine(last if gap else None, t)
