@@ -69,9 +69,11 @@ class HostStream:
     - forward (time skipped), a time past the old clock's reading at the step by over half
       the step (the old clock never read that far before it: the IMU saw it within a sample);
     - back (time repeated), such a time too, or one before a time the stream already had
-      (the stream's host times do not go back but at a step). A time of the repeated span
-      that is not before the stream's last one is taken as before the step: a GNSS receive
-      time wrong by less than the stream's own spacing.
+      (the stream's host times do not go back but at a step); else, given the UTC of what it
+      received (a GNSS epoch's), one whose receive delay on the old clock is nearer the last
+      one's less the step than the last one's (a 1 Hz receiver's next fix may come after
+      the last one's time on the new clock: taken before the step, its epoch was placed a
+      step early).
     """
 
     def __init__(self, clock: HostClock) -> None:
@@ -79,24 +81,38 @@ class HostStream:
         self._passed = 0  # steps this stream is past
         self.correction_s = 0.0  # theirs, s
         self._latest_s = -math.inf  # the stream's latest host time since its last step
+        self._last: tuple[float, float | None] = (math.nan, None)  # host time, receive delay
+        self._delay_before: float | None = None  # the receive delay of the time before it
 
-    def core(self, h: float) -> float:
-        """Core time of host time ``h``, the stream's next (the same ``h`` again gives the
-        same answer, with the steps found since taken in)."""
+    def core(self, h: float, utc_s: float | None = None) -> float:
+        """Core time of host time ``h``, the stream's next, received ``h - utc_s`` after it
+        happened if ``utc_s`` is given (the same ``h`` again gives the same answer, with the
+        steps found since taken in)."""
+        if h != self._last[0]:
+            self._delay_before = self._last[1]
         steps = self._clock.steps
-        while self._passed < len(steps):
-            step = steps[self._passed]
-            if not (
-                h >= step.host_s + 0.5 * abs(step.delta_s)
-                or (step.delta_s < 0.0 and h < self._latest_s)
-            ):
-                break
+        while self._passed < len(steps) and self._after(steps[self._passed], h, utc_s):
             self._passed += 1
-            self.correction_s += step.delta_s
+            self.correction_s += steps[self._passed - 1].delta_s
             self._latest_s = -math.inf
         if h > self._latest_s:
             self._latest_s = h
-        return h - self.correction_s
+        t = h - self.correction_s
+        self._last = (h, None if utc_s is None else t - utc_s)
+        return t
+
+    def _after(self, step: ClockStep, h: float, utc_s: float | None) -> bool:
+        """Host time ``h`` (of UTC ``utc_s``) is on the clock after ``step`` (class doc)."""
+        if h >= step.host_s + 0.5 * abs(step.delta_s):
+            return True
+        if step.delta_s >= 0.0:
+            return False
+        if h < self._latest_s:
+            return True
+        if utc_s is None or self._delay_before is None:
+            return False
+        moved = h - self.correction_s - utc_s - self._delay_before  # on the old clock
+        return abs(moved - step.delta_s) < abs(moved)
 
 
 def retimed(fix: GnssFix, t_s: float) -> GnssFix:

@@ -152,6 +152,21 @@ def test_other_streams_take_a_step_from_their_first_time_on_the_new_clock() -> N
     assert late.core(113.0) == pytest.approx(112.0)
 
 
+def test_a_fix_after_a_step_back_is_told_by_its_receive_delay() -> None:
+    """A 1 Hz receiver: its first fix on the new clock, 0.7 s back, comes later than its
+    last on the old one. Its receive delay tells: 0.7 s less than the last one's on the old
+    clock, as much as the last one's on the new. A fix read before the step in the same
+    span has the last one's delay on the old clock."""
+    clock = HostClock()
+    after, before = clock.stream(), clock.stream()
+    for fixes_of in (after, before):
+        assert fixes_of.core(100.0, 99.93) == 100.0
+    clock.step(100.9, -0.7)  # at core (and old host) time 100.9
+    assert after.core(100.9, 101.53) == pytest.approx(101.6)  # core 101.6, on the new clock
+    assert before.core(100.6, 100.53) == 100.6  # on the old one, before the step
+    assert before.core(100.5, 101.13) == pytest.approx(101.2)  # then on the new: went back
+
+
 def fixes(delays: list[float], t0: float = 1000.0) -> list[GnssFix]:
     """10 Hz fixes received ``delays`` after their UTC epoch."""
     return [

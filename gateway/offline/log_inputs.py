@@ -206,23 +206,23 @@ def _merged(
     gnss_clock = clock.stream()
     steps = clock.steps
     fix = next(fixes, None)
-    t_fix = 0.0 if fix is None else gnss_clock.core(fix.t)
+    t_fix = 0.0 if fix is None else gnss_clock.core(fix.t, fix.t_utc)
     known = len(steps)  # the steps t_fix was put on core time with
     pending = seen.pending
     for item in can_inputs:
         if fix is not None:
             if len(steps) != known:
-                t_fix, known = gnss_clock.core(fix.t), len(steps)
+                t_fix, known = gnss_clock.core(fix.t, fix.t_utc), len(steps)
             while t_fix < item.t:
                 yield retimed(fix, t_fix)
                 fix = next(fixes, None)
                 if fix is None:
                     break
-                t_fix, known = gnss_clock.core(fix.t), len(steps)
+                t_fix, known = gnss_clock.core(fix.t, fix.t_utc), len(steps)
         if pending and pending[0][0] is item:
             seen.lost = pending.popleft()[1]
         yield item
     while fix is not None:
-        t_fix = gnss_clock.core(fix.t)
+        t_fix = gnss_clock.core(fix.t, fix.t_utc)
         yield retimed(fix, t_fix)
         fix = next(fixes, None)

@@ -402,7 +402,7 @@ class GatewayService:
         after them goes in before the next sample.
         """
         held, clock = self._held, self._gnss_clock
-        while held and (t := clock.core(held[0].t)) < before:
+        while held and (t := clock.core(held[0].t, held[0].t_utc)) < before:
             self.process(retimed(held.popleft(), t))
 
     async def _run_tick(self) -> None:
