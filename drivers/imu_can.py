@@ -817,7 +817,7 @@ class ImuDecoder:
         """The host clock stepped by ``delta`` from sample ``n_from`` on (sample ``n`` arrived
         at ``a`` on the new clock): added to :attr:`host_clock`; the anchor goes on. Late
         arrivals had opened a window: it opens again at ``a`` on the new clock."""
-        self.host_clock.step(self._offset + n_from * self._dt - self._latency, delta)
+        found = self.host_clock.step(self._offset + n_from * self._dt - self._latency, delta)
         self._correction = self.host_clock.correction_s
         self._stepped = delta
         a -= delta
@@ -830,9 +830,10 @@ class ImuDecoder:
         self._warn(
             WarningKind.CLOCK_STEP,
             a,
-            f"host clock stepped {delta:+.3f} s at IMU SEQ {seq} (arrivals {abs(delta):.3f} s "
-            f"{how} with no SEQ gap): IMU, GNSS and ISOBUS times taken less it from then on, "
-            "on one time line; expected a host clock that slews (NTP, chrony)",
+            f"host clock stepped {delta:+.3f} s at t={found.host_s + delta:.3f} (IMU arrivals "
+            f"to SEQ {seq} {abs(delta):.3f} s {how} with no SEQ gap): IMU, GNSS "
+            "and ISOBUS times taken less it from then on, on one time line; expected a host "
+            "clock that slews (NTP, chrony)",
         )
 
     def _anchor(self, a: float, n: int, offset: float, seq: int, reason: str | None) -> None:
