@@ -4,9 +4,10 @@ Replay, the accuracy benchmark and tests feed engines from here, so they see exa
 samples and fixes the live service would: IMU samples at their reconstructed sample time,
 GNSS fixes at their host receive time (after the IMU samples that preceded them). All on
 core time (:mod:`drivers.host_clock`): the host clock less the steps the IMU decoder found,
-which it finds within :data:`CLOCK_STEP_FOUND_S` of arrivals; the CAN inputs are decoded
-:data:`DECODE_AHEAD` or more ahead of the one handed out, so that a fix or another node's
-frame is put on core time, and the merge and the output stamps are right, across a step.
+which it finds within 0.375 s of arrivals (:attr:`ImuDecoder.step_pending`, at the default
+``wrap_check_s``); the CAN inputs are decoded :data:`DECODE_AHEAD` or more ahead of the one
+handed out, so that a fix or another node's frame is put on core time, and the merge and the
+output stamps are right, across a step.
 
 Every other frame of the CAN log comes as a :class:`BusFrame`, received from the ISOBUS (SPEC
 5: by default the IMU bridge and the ISOBUS are one bus, so a recording of it holds other
@@ -45,11 +46,9 @@ _SOURCE_MASK = 0xFF
 #: frames, then fusing a run of samples, keeps each one's code and data hot (replay of the
 #: EKF on `short` 33.0 -> 30.1-30.3 us a sample, docs/PERFORMANCE.md), and memory stays flat.
 #: Ahead by this many, a step of the host clock is found before any input on the new clock is
-#: handed out: :data:`CLOCK_STEP_FOUND_S` of IMU samples at up to 819.2 Hz is 308 of them.
+#: handed out: a step forward takes the IMU decoder 0.375 s of arrivals (a step back none),
+#: 308 samples at 819.2 Hz, the fastest DEC.
 DECODE_AHEAD = 512
-#: The IMU decoder finds a host clock step forward within this much of arrivals (three
-#: windows of ``wrap_check_s / 2``), a step back at once.
-CLOCK_STEP_FOUND_S = 0.375
 
 
 @dataclass
