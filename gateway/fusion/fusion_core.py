@@ -334,9 +334,11 @@ class FusionCore:
         if self._warm_start is not None:
             self._wait_for_temperature(t)
         last = self._last_sample
-        gap = last is not None and abs(t - last.t) >= RESTART_GAP_S
-        if last is not None and abs(t - last.t) > JUMP_S and (sample.seq - last.seq) & 0xFF == 1:
-            self._host_jumped(t - last.t - sample.dt)
+        gap = False
+        if last is not None and abs(t - last.t) > JUMP_S:  # a RESTART_GAP_S gap is over it too
+            gap = abs(t - last.t) >= RESTART_GAP_S
+            if (sample.seq - last.seq) & 0xFF == 1 and self.epoch_clock is not None:
+                self.epoch_clock.host_jumped(t - last.t - sample.dt)
         if gap or self._unusable:
             self._restart_engine(last if gap else None, t)
         self._last_sample = sample
@@ -418,11 +420,6 @@ class FusionCore:
             self._last_unusable_log = sample.t
         self._unusable = True
         return self._counted(chain(self._timers(sample.t), self._fault(sample.t)))
-
-    def _host_jumped(self, jump_s: float) -> None:
-        """The IMU's times jumped by ``jump_s`` with the SEQ going on (:data:`JUMP_S`)."""
-        if self.epoch_clock is not None:
-            self.epoch_clock.host_jumped(jump_s)
 
     def _restart_engine(self, last: ImuSample | None, t: float) -> None:
         """A new engine after a gap since ``last`` (None: after unusable samples), seeded with

@@ -415,13 +415,17 @@ class GatewayService:
         """What the loop does without IMU input (service time ``now``): the core's timers, and
         FAULT once the IMU is silent; fixes held for the IMU go in."""
         if now - self._last_imu_t >= TICK_S and not self._imu_pending():
-            now -= self.imu_decoder.host_clock.correction_s
+            now = self.core_time(now)
             self._send(self.core.poll(now))
             self._release_fixes(now - HOLD_MAX_S)
 
     def core_now(self) -> float:
-        """The core's time now: service time less the host clock's steps found."""
-        return self.timebase.now() - self.imu_decoder.host_clock.correction_s
+        """The core's time now."""
+        return self.core_time(self.timebase.now())
+
+    def core_time(self, now: float) -> float:
+        """The core's time at service time ``now``: less the host clock's steps found."""
+        return now - self.imu_decoder.host_clock.correction_s
 
     def _imu_pending(self) -> bool:
         """IMU input waits in a reader or the inbox: the loop is behind its input, and the
