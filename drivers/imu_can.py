@@ -533,6 +533,7 @@ class ImuDecoder:
             self._seq_tolerance_s = 2.0 * self._dt + 0.002
             n = 0 if start else self._n_last + 1
             self._n_first = n
+            self._seq_taken, self._shift_pending = seq, None  # the SEQ counted on from
             self._missing.clear()
             self._skipped_frames = 0
             self._anchor(a, n, a - n * self._dt, seq, None if start else f"DEC changed to {dec}")

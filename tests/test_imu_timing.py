@@ -296,10 +296,47 @@ def test_a_dec_change_reanchors_once() -> None:
     out2, ind2 = stream(2.0)
     out3, ind3 = stream(2.0, dec=3, t0=out2.t[-1] + sample_period_s(3))
     dec, s = decode(host(ind2 + ind3))
-    assert dec.counters.reanchors == 1 and dec.counters.lost == 0
+    c = dec.counters
+    assert (c.reanchors, c.lost, c.seq_errors, c.seq_restarts) == (1, 0, 0, 0)
     t = np.array([x.t for x in s])
     assert np.abs(t - np.concatenate([out2.t, out3.t])).max() < 1e-6
     assert [x.dt for x in s] == [DT] * len(out2) + [sample_period_s(3)] * len(out3)
+
+
+def counting_on(indexed: Frames, first_seq: int) -> Frames:
+    """``indexed`` with its SEQ counting on from ``first_seq`` (a bridge that kept its
+    counter through a change of DEC)."""
+    ids = ImuCanIds.for_source_address(BridgeConfig().source_address)
+    out = []
+    for k, m in indexed:
+        if m.arbitration_id in (ids.gyro, ids.accel):
+            data = bytearray(m.data)
+            data[6] = (first_seq + k) & 0xFF
+            m = can.Message(
+                timestamp=m.timestamp, arbitration_id=m.arbitration_id, data=bytes(data)
+            )
+        out.append((k, m))
+    return tuple(out)
+
+
+@pytest.mark.parametrize("dec_change", [False, True])
+def test_a_seq_counted_from_wherever_it_starts(dec_change: bool) -> None:
+    """The service starts while the bridge counts (a restart, a reopened bus): its first
+    SEQ is any, and the next is the next, not a corrupted counter nor a lost sample; and a
+    change of DEC with the SEQ counting on loses nothing. Before, the SEQ was counted on
+    from 0 at both: a start mid-count warned of a SEQ error and a restart, and a change of
+    DEC counted one sample lost and re-anchored twice."""
+    out2, ind2 = stream(2.0)
+    kept = [(k, m) for k, m in ind2 if k >= 17]  # frames from SEQ 17 on
+    ind3: Frames = ()
+    if dec_change:
+        out3, ind3 = stream(2.0, dec=3, t0=out2.t[-1] + sample_period_s(3))
+        ind3 = counting_on(ind3, int(out2.seq[-1]) + 1)
+    dec, s = decode(host(kept + list(ind3)))
+    c = dec.counters
+    assert (c.lost, c.seq_errors, c.seq_restarts, c.reanchors) == (0, 0, 0, int(dec_change))
+    assert len(s) == len(out2) - 17 + (len(out3) if dec_change else 0)
+    assert [x.seq for x in s][:2] == [17, 18]
 
 
 stall = st.tuples(st.floats(0.1, 7.5), st.floats(0.001, 3.0))
