@@ -146,3 +146,23 @@ def test_a_retired_key_is_ignored_with_a_warning_and_the_rest_still_read(
     assert getattr(config, section).align_min_speed_mps == 3.0
     assert f"{path}: {section}.{retired} is ignored" in caplog.text
     assert main(["config", "--check", str(path)]) == 0
+
+
+def test_a_moved_key_keeps_its_meaning_in_its_new_place(
+    tmp_path: Path, caplog: pytest.LogCaptureFixture
+) -> None:
+    """The temperature coefficients were [state]'s while only the warm start used them; an
+    older config's value is taken as [imu]'s, the engines' and the store's alike, unless
+    [imu] sets it too."""
+    path = tmp_path / "old.toml"
+    path.write_text("[state]\ngyro_bias_tempco_dps_per_c = 0.02\nmax_age_days = 7.0\n")
+    with caplog.at_level("WARNING", logger="gateway.config.gateway_config"):
+        config = load_config(path)
+    assert config.imu.gyro_bias_tempco_dps_per_c == 0.02 and config.state.max_age_days == 7.0
+    assert config.engine_settings().gyro_bias_tempco_dps_per_c == 0.02
+    assert f"{path}: state.gyro_bias_tempco_dps_per_c is now imu." in caplog.text
+    path.write_text(
+        "[state]\ngyro_bias_tempco_dps_per_c = 0.02\n[imu]\ngyro_bias_tempco_dps_per_c = 0.03\n"
+    )
+    assert load_config(path).imu.gyro_bias_tempco_dps_per_c == 0.03
+    assert main(["config", "--check", str(path)]) == 0

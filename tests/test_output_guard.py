@@ -55,6 +55,9 @@ class ScriptedEngine:
     def seed(self, learned: LearnedState, f_rest_b_mps2: Float3 | None = None) -> bool:
         return False  # learns nothing, takes nothing
 
+    def temperature(self, t_s: float, temp_c: float) -> None:
+        return None  # scripted: no biases to walk
+
     def learned_state(self) -> LearnedState | None:
         return None
 

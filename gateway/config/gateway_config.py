@@ -118,6 +118,22 @@ class ImuSection:
         default=100.0,
         metadata=_doc("Gauss-Markov time of the in-run biases", **in_range(1e-3, 1e6)),
     )
+    # bias change with temperature: the engines' bias walks grow by tempco x the temperature's
+    # rate, and a stored bias's sigma by tempco x the temperature's change (warm start)
+    gyro_bias_tempco_dps_per_c: float = field(
+        default=0.01,
+        metadata=_doc(
+            "gyro bias temperature coefficient, deg/s per degC (ADIS1633x-class datasheet)",
+            **in_range(0.0, 1.0),
+        ),
+    )
+    accel_bias_tempco_mg_per_c: float = field(
+        default=0.1,
+        metadata=_doc(
+            "accelerometer bias temperature coefficient, mg per degC (ADIS1633x-class datasheet)",
+            **in_range(0.0, 100.0),
+        ),
+    )
     imu_fault_s: float = field(
         default=1.0,
         metadata=_doc(
@@ -300,21 +316,6 @@ class StateSection:
         default=30.0,
         metadata=_doc("learned biases older than this are not used", **in_range(0.001, 3650.0)),
     )
-    # bias change with temperature: grows a stored sigma by tempco x |temperature change|
-    gyro_bias_tempco_dps_per_c: float = field(
-        default=0.01,
-        metadata=_doc(
-            "gyro bias temperature coefficient, deg/s per degC (ADIS1633x-class datasheet)",
-            **in_range(0.0, 1.0),
-        ),
-    )
-    accel_bias_tempco_mg_per_c: float = field(
-        default=0.1,
-        metadata=_doc(
-            "accelerometer bias temperature coefficient, mg per degC (ADIS1633x-class datasheet)",
-            **in_range(0.0, 100.0),
-        ),
-    )
 
 
 #: Sections with a plain dataclass, in the order the example prints them.
@@ -372,6 +373,8 @@ _SHARED = {
     "accel_bias_stability_mg": "imu",
     "bias_correlation_time_s": "imu",
     "imu_fault_s": "imu",
+    "gyro_bias_tempco_dps_per_c": "imu",
+    "accel_bias_tempco_mg_per_c": "imu",
 }
 
 
@@ -436,9 +439,19 @@ RETIRED_KEYS: dict[str, dict[str, str]] = {
     },
 }
 
+#: Keys of earlier releases now in another section: (old section, key) -> new section. A
+#: value given in the old place is taken in the new one (unless set there too), with a
+#: warning, so that an older config keeps its meaning.
+MOVED_KEYS: dict[tuple[str, str], str] = {
+    # the IMU's datasheet figures, in [state] while only the warm start used them
+    ("state", "gyro_bias_tempco_dps_per_c"): "imu",
+    ("state", "accel_bias_tempco_mg_per_c"): "imu",
+}
 
-def _without_retired(table: dict[str, Any], where: str) -> dict[str, Any]:
-    """``table`` less the :data:`RETIRED_KEYS` it sets, each logged as a warning."""
+
+def _upgraded(table: dict[str, Any], where: str) -> dict[str, Any]:
+    """``table`` less the :data:`RETIRED_KEYS` it sets and with the :data:`MOVED_KEYS` in
+    their new place, each logged as a warning."""
     out = dict(table)
     for section, retired in RETIRED_KEYS.items():
         given = out.get(section)
@@ -446,13 +459,25 @@ def _without_retired(table: dict[str, Any], where: str) -> dict[str, Any]:
             out[section] = {k: v for k, v in given.items() if k not in retired}
             for key in old:
                 log.warning("%s: %s.%s is ignored: %s", where, section, key, retired[key])
+    for (section, key), to in MOVED_KEYS.items():
+        given, target = out.get(section), out.get(to, {})
+        if not (isinstance(given, dict) and key in given and isinstance(target, dict)):
+            continue
+        out[section] = {k: v for k, v in given.items() if k != key}
+        if key in target:
+            log.warning("%s: %s.%s is ignored: %s.%s is set", where, section, key, to, key)
+        else:
+            out[to] = {**target, key: given[key]}
+            log.warning(
+                "%s: %s.%s is now %s.%s: taken from [%s]", where, section, key, to, key, section
+            )
     return out
 
 
 def config_from_table(table: dict[str, Any], where: str = "config") -> GatewayConfig:
     """Validate a parsed TOML document; unknown tables and keys are errors that name them
     (but :data:`RETIRED_KEYS`, ignored with a warning)."""
-    table = _without_retired(table, where)
+    table = _upgraded(table, where)
     unknown = sorted(set(table) - set(SECTIONS) - set(ENGINE_SECTIONS))
     if unknown:
         raise ConfigError(

@@ -279,6 +279,10 @@ class LearningEstimator(Estimator, Protocol):
         ``f_rest_b_mps2``: the mean specific force (body, bias included) over the rest the
         vehicle is standing in now, if any: the level with the seeded accelerometer bias."""
 
+    def temperature(self, t_s: float, temp_c: float) -> None:
+        """The IMU's temperature at ``t_s`` (IMU_AUX): its rate adds to the bias walk
+        (:mod:`gateway.estimation.temperature`)."""
+
     def learned_state(self) -> LearnedState | None:
         """The biases learned so far with their honest 1-sigma; None before the engine has
         any (not yet levelled and not seeded)."""

@@ -37,11 +37,11 @@ from pathlib import Path
 
 from gateway.calibration.mounting import AXES, CalibrationConfig
 from gateway.config.gateway_config import GatewayConfig
+from gateway.estimation.temperature import TEMP_RANGE_C, plausible
 from gateway.fusion.fusion_core import FusionCore, learned_text
 from gateway.fusion.rest_check import WarmSeed
 from gateway.state.store import (
     STATE_FILE,
-    TEMP_RANGE_C,
     BandEntry,
     Biases,
     BiasGrowth,
@@ -174,7 +174,7 @@ class StateKeeper:
         if state is None:
             return None
         try:
-            if not _plausible(temp_c):
+            if not plausible(temp_c):
                 raise StoreError(
                     f"the IMU reports {temp_c} degC: expected a temperature in "
                     f"[{TEMP_RANGE_C[0]:g}, {TEMP_RANGE_C[1]:g}] degC"
@@ -209,7 +209,7 @@ class StateKeeper:
         temp_c = core.imu_temp_c
         if not self.usable_directory or learned is None or temp_c is None:
             return None
-        if not (learned.is_valid() and _plausible(temp_c)):
+        if not (learned.is_valid() and plausible(temp_c)):
             return None
         sol = core.solution()
         entry = BandEntry(
@@ -269,11 +269,6 @@ class StateKeeper:
             log.warning("learned state not saved to %s: %r", self.path, err)
             return False
         return state is not None and self.write(state)
-
-
-def _plausible(temp_c: float) -> bool:
-    """A temperature the IMU can have (TEMP_OUT garbage is not a band)."""
-    return math.isfinite(temp_c) and TEMP_RANGE_C[0] <= temp_c <= TEMP_RANGE_C[1]
 
 
 # ==================================================================== the IMU mounting

@@ -50,6 +50,7 @@ from gateway.calibration.mounting import AXES
 from gateway.config.gateway_config import GatewayConfig
 from gateway.estimation.ekf.ekf_config import GM_ALLAN_FLOOR
 from gateway.estimation.solution import LearnedState
+from gateway.estimation.temperature import TEMP_RANGE_C
 from gateway.fusion.rest_check import RestRecord
 
 Vec3 = tuple[float, float, float]
@@ -64,8 +65,6 @@ MAX_GYRO_BIAS_RPS = 5.0 * DEG_TO_RAD
 MAX_ACCEL_BIAS_MPS2 = 1.0
 MAX_GYRO_SIGMA_RPS = 10.0 * DEG_TO_RAD
 MAX_ACCEL_SIGMA_MPS2 = 2.0
-#: The IMU's temperature range (operating -40 to 85 degC), with a margin.
-TEMP_RANGE_C = (-60.0, 150.0)
 #: Earth rate, rad/s: the engines leave it in the gyro bias they learn, in the body axes of
 #: the heading they learned at; another heading at the next start moves it by up to this.
 EARTH_RATE_RPS = 7.292115e-5
@@ -198,15 +197,15 @@ class BiasGrowth:
 
     @classmethod
     def from_config(cls, config: GatewayConfig) -> BiasGrowth:
-        """[imu]'s bias stability (datasheet Allan floor / 0.6174) and correlation time,
-        [state]'s temperature coefficients."""
-        imu, state = config.imu, config.state
+        """[imu]'s bias stability (datasheet Allan floor / 0.6174), correlation time and
+        temperature coefficients."""
+        imu = config.imu
         return cls(
             gyro_wander_rps=imu.gyro_bias_stability_dps * DEG_TO_RAD / GM_ALLAN_FLOOR,
             accel_wander_mps2=imu.accel_bias_stability_mg * MG_MPS2 / GM_ALLAN_FLOOR,
             correlation_s=imu.bias_correlation_time_s,
-            gyro_tempco_rps_per_c=state.gyro_bias_tempco_dps_per_c * DEG_TO_RAD,
-            accel_tempco_mps2_per_c=state.accel_bias_tempco_mg_per_c * MG_MPS2,
+            gyro_tempco_rps_per_c=imu.gyro_bias_tempco_dps_per_c * DEG_TO_RAD,
+            accel_tempco_mps2_per_c=imu.accel_bias_tempco_mg_per_c * MG_MPS2,
         )
 
     def _grow(

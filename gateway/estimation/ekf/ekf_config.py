@@ -32,6 +32,10 @@ class EkfConfig:
     gyro_bias_stability_dps: float = 0.007  # in-run bias stability (Allan floor)
     accel_bias_stability_mg: float = 0.1  # in-run bias stability (Allan floor)
     bias_correlation_time_s: float = 100.0  # Gauss-Markov time of the in-run bias
+    # the biases' temperature coefficients (datasheet, 1-sigma; [imu], as the observer's):
+    # the temperature's rate adds to the wander (gateway/estimation/temperature.py)
+    gyro_bias_tempco_dps_per_c: float = 0.01
+    accel_bias_tempco_mg_per_c: float = 0.1
     # Turn-on bias 1-sigma after installation nulling (initial P; what the simulator draws)
     gyro_bias_sigma0_dps: float = 0.1
     accel_bias_sigma0_mps2: float = 5.0 * MG_MPS2

@@ -146,6 +146,7 @@ from gateway.estimation.solution import (
     convergence_of,
     navigation_mode,
 )
+from gateway.estimation.temperature import TemperatureWalk
 
 Array = npt.NDArray[np.float64]
 log = logging.getLogger(__name__)
@@ -230,6 +231,12 @@ class EkfEngine:
         self._corrections = CorrectionWindow("tilt")  # recent attitude corrections: a bias change?
         self._heading_corrections = CorrectionWindow("heading")  # the same for the z bias
         self._ba_walk = FoundWalk()  # the x/y accelerometer bias walk tilt changes showed
+        # the bias walks the IMU's temperature drives (:meth:`temperature`)
+        self._temp = TemperatureWalk(
+            cfg.gyro_bias_tempco_dps_per_c,
+            cfg.accel_bias_tempco_mg_per_c,
+            cfg.bias_correlation_time_s,
+        )
         self._hdt_doubt = HdtDoubt()  # an HDT the courses contradicted
         self._t_hdt_used_s = -math.inf  # the last epoch whose HDT the filter took
         # turned at rest beyond the z bias since the last course, rad, over refused spans, s
@@ -431,9 +438,12 @@ class EkfEngine:
             self._fix_err_ned_m *= decay
             q_c = self._q_c
             walk = 0.0 if self._t_s is None else self._ba_walk.psd_at(self._t_s)
-            if walk:
+            walk_g, walk_a = self._temp.gyro_rps2_per_s, self._temp.accel_mps4_per_s
+            if walk or walk_g or walk_a:
                 q_c = q_c.copy()
                 q_c[BA.start : BA.start + 2] += walk
+                q_c[BA] += walk_a
+                q_c[BG] += walk_g
             predict(self._p, transition_matrix(t_s, dv_f, c_dt, decay), q_c, t_s)
 
     def _align_tilt(self, t: float, w: Float3, f: Float3, dt: float) -> None:
@@ -617,6 +627,11 @@ class EkfEngine:
         )
 
     # ======================================================================= corrections
+
+    def temperature(self, t_s: float, temp_c: float) -> None:
+        """The IMU's temperature at ``t_s`` (IMU_AUX, 1 Hz): while it moves, the biases
+        walk faster (:mod:`gateway.estimation.temperature`), and so do P's."""
+        self._temp.add(t_s, temp_c)
 
     def gnss(self, fix: GnssFix) -> None:
         """Correct with one GNSS epoch; it may arrive after IMU samples of later time.

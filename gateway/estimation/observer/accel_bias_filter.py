@@ -181,6 +181,9 @@ class AccelBiasFilter:
         self._h0_m = 0.0  # the height at its start, m
         self._t_height_s = 0.0  # its last weighed residual's time, s
         self.walk = FoundWalk()  # the x/y bias walk tilt changes showed (the engine's finds)
+        # the gyro's and accelerometer's bias walks a moving temperature adds, PSD (the
+        # engine's: gateway.estimation.temperature)
+        self.temp_walk = (0.0, 0.0)
 
     def start(
         self,
@@ -484,8 +487,9 @@ class AccelBiasFilter:
         walk = 2.0 * dt / n.bias_correlation_s
         q_a = n.accel_psd * dt
         q_x = (g * n.arw_rad_per_sqrt_s) ** 2 * dt
-        q_b = walk * n.accel_bias_sigma_mps2**2 + walk_psd * dt
-        q_g = walk * n.gyro_bias_sigma_rps**2
+        walk_g, walk_a = self.temp_walk
+        q_b = walk * n.accel_bias_sigma_mps2**2 + (walk_psd + walk_a) * dt
+        q_g = walk * n.gyro_bias_sigma_rps**2 + walk_g * dt
         q_psi = n.heading_sigma_rad**2 * (1.0 - decay_psi * decay_psi)
         q_th = n.chassis_pitch_sigma_rad**2 * dt / n.chassis_pitch_wander_s
         s = f @ self._s
@@ -496,7 +500,7 @@ class AccelBiasFilter:
         s[3] += u_e
         self._s = s
         p = f @ self._p @ f.T
-        q_bz = walk * n.accel_bias_sigma_mps2**2
+        q_bz = walk * n.accel_bias_sigma_mps2**2 + walk_a * dt
         p.flat[:: N_STATES + 1] += (q_a, q_a, q_x, q_x, q_b, q_b, q_g, q_g, q_bz, q_psi, 0.0, q_th)
         self._set_p(p)
 

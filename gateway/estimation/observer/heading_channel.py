@@ -119,7 +119,13 @@ class GyroZBiasKf:
     def __init__(self, sigma0_rps: float, walk_rps_per_sqrt_s: float) -> None:
         self.x_rps = 0.0
         self.p_rps2 = sigma0_rps**2
-        self.q_rps2_per_s = walk_rps_per_sqrt_s**2
+        self.q_wander_rps2_per_s = walk_rps_per_sqrt_s**2  # the in-run wander's walk
+        self.q_temp_rps2_per_s = 0.0  # the walk a moving temperature adds (the engine's)
+
+    @property
+    def q_rps2_per_s(self) -> float:
+        """The bias's random walk, Q, (rad/s)^2 / s."""
+        return self.q_wander_rps2_per_s + self.q_temp_rps2_per_s
 
     def predict(self, dt_s: float) -> None:
         """Random-walk bias: P += Q dt."""
@@ -505,7 +511,7 @@ class HeadingChannel:
         floors are. A unit twice as noisy as its datasheet (robustness `imu-noise-x2`) came
         out of a 60 s outage 2.7 deg off with 0.56 stated, NAVIGATING half a second later."""
         self._arw = arw_rps_per_sqrt_s
-        self.kf.q_rps2_per_s = (self._walk_rps_per_sqrt_s * scale) ** 2
+        self.kf.q_wander_rps2_per_s = (self._walk_rps_per_sqrt_s * scale) ** 2
 
     def rest_began(self) -> None:
         """A window at rest starts: its heading variance is what a hold at its end keeps."""

@@ -67,6 +67,10 @@ class ObserverConfig:
     gyro_bias_stability_dps: float = 0.007  # in-run bias stability (Allan floor)
     accel_bias_stability_mg: float = 0.1  # in-run bias stability (Allan floor)
     bias_correlation_time_s: float = 100.0  # Gauss-Markov time of the in-run bias
+    # the biases' temperature coefficients (datasheet, 1-sigma; [imu], as the EKF's): the
+    # temperature's rate adds to the wander (gateway/estimation/temperature.py)
+    gyro_bias_tempco_dps_per_c: float = 0.01
+    accel_bias_tempco_mg_per_c: float = 0.1
     # Engine vibration seen by the IMU (installation): broadband 1-sigma per sample, as
     # [ekf]'s; the stated accuracy holds for it, and grows with the noise measured at rest
     # where that is beyond it (gateway/estimation/imu_noise.py)

@@ -114,6 +114,7 @@ from gateway.estimation.solution import (
     convergence_of,
     navigation_mode,
 )
+from gateway.estimation.temperature import TemperatureWalk
 
 #: Interval of the log line that the epoch time's share holds NAVIGATING back, s: a standing
 #: condition of the installation (a free-running host clock), not an event.
@@ -331,6 +332,12 @@ class ObserverEngine:
             AccelBiasFilter(cfg.tau_s) if cfg.accel_bias_filter and cfg.estimate_biases else None
         )
         self._hint: HeadingHint | None = None  # the heading the last engine had, till aligned
+        # the bias walks the IMU's temperature drives (:meth:`temperature`)
+        self._temp = TemperatureWalk(
+            cfg.gyro_bias_tempco_dps_per_c,
+            cfg.accel_bias_tempco_mg_per_c,
+            cfg.bias_correlation_time_s,
+        )
 
     # ======================================================================== prediction
 
@@ -595,7 +602,7 @@ class ObserverEngine:
         self._tilt_loop.clear()
         self._observer = TereshkovObserver(
             self.cfg.tau_s,
-            self.cfg.tau_g_s,
+            self._tau_g_s(),
             self.cfg.omega_a_dps * DEG_TO_RAD,
             dcm_mul(to_mat9(dcm_from_rpy(roll, pitch, 0.0)), self._align_rot9),
         )
@@ -689,6 +696,30 @@ class ObserverEngine:
         )
 
     # ======================================================================= corrections
+
+    def temperature(self, t_s: float, temp_c: float) -> None:
+        """The IMU's temperature at ``t_s`` (IMU_AUX, 1 Hz): while it moves, the biases
+        walk faster (:mod:`gateway.estimation.temperature`): the z gyro bias filter's walk
+        and the accelerometer-bias filter's take it, and eq. (11) follows the x/y gyro
+        biases faster (:meth:`_tau_g_s`)."""
+        temp = self._temp
+        temp.add(t_s, temp_c)
+        self._heading.kf.q_temp_rps2_per_s = temp.gyro_rps2_per_s
+        if self._ba_filter is not None:
+            self._ba_filter.temp_walk = (temp.gyro_rps2_per_s, temp.accel_mps4_per_s)
+        if self._observer is not None:
+            self._observer.tau_g_s = self._tau_g_s()
+
+    def _tau_g_s(self) -> float:
+        """Eq. (11)'s time constant now: the paper's for the in-run wander's walk q0, and
+        sqrt(q0 / (q0 + q_T)) of it while the temperature's walk q_T adds to it (a PI loop's
+        integral gain goes as the square root of the walk it follows, a Kalman filter's
+        does; its tilt error on a bias ramp r is r tau tau_g)."""
+        q_t = self._temp.gyro_rps2_per_s
+        if not q_t:
+            return self.cfg.tau_g_s
+        q0 = self._heading.kf.q_wander_rps2_per_s
+        return self.cfg.tau_g_s * math.sqrt(q0 / (q0 + q_t))
 
     def gnss(self, fix: GnssFix) -> None:
         """Correct with one GNSS epoch; it may arrive after IMU samples of later time.
