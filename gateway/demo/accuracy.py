@@ -98,7 +98,8 @@ def record(
     engine: Estimator, inputs: Iterable[ImuSample | ImuAux | GnssFix], every: int = 10
 ) -> Trace:
     """Feed ``inputs`` to ``engine`` in order; keep the solution after every ``every``-th
-    IMU sample (10: about 20 Hz at 204.8 Hz). IMU_AUX records are not engine inputs."""
+    IMU sample (10: about 20 Hz at 204.8 Hz); IMU_AUX gives the IMU's temperature, as the
+    fusion core does."""
     solutions: list[Solution] = []
     n = 0
     for item in inputs:
@@ -109,6 +110,8 @@ def record(
                 solutions.append(engine.solution())
         elif isinstance(item, GnssFix):
             engine.gnss(item)
+        else:
+            engine.temperature(item.t, item.temp_c)
     return Trace.from_solutions(solutions)
 
 

@@ -55,6 +55,11 @@ class _TiltSwapEngine(ABC):
         """GNSS goes to the navigation observer only (the tilt sources take none)."""
         self._nav.gnss(fix)
 
+    def temperature(self, t_s: float, temp_c: float) -> None:
+        """The IMU's temperature goes to the navigation observer (the tilt sources model
+        no bias walk)."""
+        self._nav.temperature(t_s, temp_c)
+
     def solution(self) -> Solution:
         """The observer's solution with this engine's roll/pitch and lever-arm projection."""
         sol = self._nav.solution()

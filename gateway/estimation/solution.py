@@ -264,6 +264,10 @@ class Estimator(Protocol):
     def gnss(self, fix: GnssFix) -> None:
         """Correct with one GNSS epoch (may arrive after IMU samples of later time)."""
 
+    def temperature(self, t_s: float, temp_c: float) -> None:
+        """The IMU's temperature at ``t_s`` (IMU_AUX, in time order with the samples): its
+        rate adds to the bias walks (:mod:`gateway.estimation.temperature`)."""
+
     def solution(self) -> Solution:
         """The current solution, at the time of the last IMU sample."""
 
@@ -278,10 +282,6 @@ class LearningEstimator(Estimator, Protocol):
         ``learned`` is not valid. Without a seed the engine behaves exactly as before.
         ``f_rest_b_mps2``: the mean specific force (body, bias included) over the rest the
         vehicle is standing in now, if any: the level with the seeded accelerometer bias."""
-
-    def temperature(self, t_s: float, temp_c: float) -> None:
-        """The IMU's temperature at ``t_s`` (IMU_AUX): its rate adds to the bias walk
-        (:mod:`gateway.estimation.temperature`)."""
 
     def learned_state(self) -> LearnedState | None:
         """The biases learned so far with their honest 1-sigma; None before the engine has
