@@ -104,7 +104,7 @@ from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.position_channel import PositionChannel
 from gateway.estimation.observer.rest_window import RestWindow
 from gateway.estimation.observer.tereshkov import TereshkovObserver
-from gateway.estimation.observer.tilt_loop import TiltLoop
+from gateway.estimation.observer.tilt_loop import MAX_TAU_FACTOR, TiltLoop
 from gateway.estimation.solution import (
     MAX_IMU_STEP_S,
     NAVIGATING_POSITION_SHARE_M,
@@ -714,12 +714,16 @@ class ObserverEngine:
         """Eq. (11)'s time constant now: the paper's for the in-run wander's walk q0, and
         sqrt(q0 / (q0 + q_T)) of it while the temperature's walk q_T adds to it (a PI loop's
         integral gain goes as the square root of the walk it follows, a Kalman filter's
-        does; its tilt error on a bias ramp r is r tau tau_g)."""
+        does; its tilt error on a bias ramp r is r tau tau_g), but never below the tilt
+        loop's longest time constant: the PI loop's damping, sqrt(tau_g / tau) / 2, stays
+        at 1/2 or more."""
+        cfg = self.cfg
         q_t = self._temp.gyro_rps2_per_s
         if not q_t:
-            return self.cfg.tau_g_s
+            return cfg.tau_g_s
         q0 = self._heading.kf.q_wander_rps2_per_s
-        return self.cfg.tau_g_s * math.sqrt(q0 / (q0 + q_t))
+        shortest = min(cfg.tau_g_s, MAX_TAU_FACTOR * cfg.tau_s)
+        return max(cfg.tau_g_s * math.sqrt(q0 / (q0 + q_t)), shortest)
 
     def gnss(self, fix: GnssFix) -> None:
         """Correct with one GNSS epoch; it may arrive after IMU samples of later time.
