@@ -13,6 +13,7 @@ lagged the warm-up: roll RMS over the second half 0.159 (observer) and 0.143 deg
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from pathlib import Path
 
@@ -60,4 +61,24 @@ def test_both_engines_follow_a_warming_unit_s_biases(
     assert roll < 0.115 and pitch < 0.115 and yaw < 0.13, (roll, pitch, yaw)
     checked, beyond = tilt_beyond_stated(out, truth)
     assert checked > 8_000 and beyond == []
+    assert heading_beyond_navigating(out, truth)[1] == []
+
+
+@pytest.mark.parametrize("engine", list(Engine))
+def test_coefficients_configured_at_the_range_s_end_send_nothing_beyond(
+    warming: SimRun, engine: Engine, tmp_path: Path
+) -> None:
+    """[imu] coefficients ten and twenty times the unit's (0.1 deg/s and 2 mg per degC, the
+    most the config takes): the engines' bias walks are that much faster, and the attitude
+    noisier, but stated so. At 1 deg/s and 100 mg per degC their bias estimates went beyond
+    the sensor's range (withheld): the config refuses such values."""
+    config = load_config(warming.config_file).with_engine(engine)
+    imu = dataclasses.replace(
+        config.imu, gyro_bias_tempco_dps_per_c=0.1, accel_bias_tempco_mg_per_c=2.0
+    )
+    out = tmp_path / "out.log"
+    replay(warming.imu_log, warming.gnss_log, out, dataclasses.replace(config, imu=imu))
+    truth = Truth.load(warming.truth_file)
+    checked, beyond = tilt_beyond_stated(out, truth)
+    assert checked > 7_000 and beyond == []
     assert heading_beyond_navigating(out, truth)[1] == []

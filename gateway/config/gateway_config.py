@@ -123,15 +123,17 @@ class ImuSection:
     gyro_bias_tempco_dps_per_c: float = field(
         default=0.01,
         metadata=_doc(
-            "gyro bias temperature coefficient, deg/s per degC (ADIS1633x-class datasheet)",
-            **in_range(0.0, 1.0),
+            "gyro bias temperature coefficient, deg/s per degC (ADIS1633x-class datasheet; "
+            "the engines' bias walks follow a warm-up by it, up to ten times the class's)",
+            **in_range(0.0, 0.1),
         ),
     )
     accel_bias_tempco_mg_per_c: float = field(
         default=0.1,
         metadata=_doc(
-            "accelerometer bias temperature coefficient, mg per degC (ADIS1633x-class datasheet)",
-            **in_range(0.0, 100.0),
+            "accelerometer bias temperature coefficient, mg per degC (ADIS1633x-class "
+            "datasheet; up to twenty times the class's)",
+            **in_range(0.0, 2.0),
         ),
     )
     imu_fault_s: float = field(
