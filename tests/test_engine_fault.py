@@ -17,9 +17,9 @@ from typing import Any
 import pytest
 
 from drivers.nmea import NmeaCounters
-from drivers.samples import ImuCounters
+from drivers.samples import ImuAux, ImuCounters
 from gateway.cli.cmd_replay import summary_text
-from gateway.config.gateway_config import Engine
+from gateway.config.gateway_config import Engine, GatewayConfig
 from gateway.estimation.solution import Mode
 from gateway.fusion.fusion_core import FusionCore
 from gateway.fusion.output_guard import GuardLimits
@@ -104,3 +104,23 @@ def test_an_engine_that_raises_is_replaced_and_the_bus_says_fault(
     ]
     assert not [t for t in attitude if t_fault <= t < t_fault + 1.0]  # levelling anew
     assert attitude_within_stated(log, MOTION, (20.0, MOTION.duration_s)) > 4000
+
+
+def test_an_engine_that_raises_on_the_imu_temperature_is_replaced(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """IMU_AUX reaches the engine too (its temperature): a bug there is the same barrier's."""
+    core = FusionCore.from_config(GatewayConfig())
+    first = core.engine
+
+    def raises(t_s: float, temp_c: float) -> None:
+        raise ZeroDivisionError("injected")
+
+    first.temperature = raises  # type: ignore[method-assign]
+    with caplog.at_level(logging.ERROR, logger="gateway.fusion.fusion_core"):
+        list(core.on_input(ImuAux(T0_S, 21.0, 5.0, 0, 1)))
+    assert core.stats.engine_faults == 1 and core.engine is not first
+    assert "the engine raised on an IMU temperature at t=" in caplog.text
+    caplog.clear()  # (tests/conftest.py fails a test whose engine raised unasked)
+    list(core.on_input(ImuAux(T0_S + 1.0, 21.1, 5.0, 0, 1)))  # the new engine takes it
+    assert core.stats.engine_faults == 1

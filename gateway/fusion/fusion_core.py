@@ -280,7 +280,10 @@ class FusionCore:
         else:
             self.stats.imu_aux += 1  # temperature, supply, DIAG_STAT: counted by the decoder
             self.imu_temp_c = item.temp_c
-            self.engine.temperature(item.t, item.temp_c)
+            try:
+                self.engine.temperature(item.t, item.temp_c)
+            except Exception as err:  # a bug must not stop the gateway: _engine_raised
+                return self._counted(self._engine_raised(item.t, "an IMU temperature", err))
             if self._warm_start is not None:
                 self._seed_engine(item.temp_c, item.t)
         return self._counted(self._silent_status(item.t))
