@@ -478,7 +478,8 @@ def _upgraded(table: dict[str, Any], where: str) -> dict[str, Any]:
 
 def config_from_table(table: dict[str, Any], where: str = "config") -> GatewayConfig:
     """Validate a parsed TOML document; unknown tables and keys are errors that name them
-    (but :data:`RETIRED_KEYS`, ignored with a warning)."""
+    (but :data:`RETIRED_KEYS`, ignored, and :data:`MOVED_KEYS`, taken in their new place,
+    each with a warning)."""
     table = _upgraded(table, where)
     unknown = sorted(set(table) - set(SECTIONS) - set(ENGINE_SECTIONS))
     if unknown:

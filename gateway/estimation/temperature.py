@@ -15,7 +15,7 @@ steady temperature.
 
 The rate is the Theil-Sen slope (the median of the pairwise slopes) of the IMU_AUX
 temperatures (1 Hz) of the last :data:`WINDOW_S`: TEMP_OUT's 0.068 degC steps and a
-garbled reading (an SPI bit error, no checksum) move a median of 400 slopes little, where
+garbled reading (an SPI bit error, no checksum) move a median of 435 slopes little, where
 one reading 100 degC off would have made a least-squares rate of 0.6 degC/s.
 """
 
