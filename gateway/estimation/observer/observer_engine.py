@@ -168,10 +168,11 @@ NOISE_TOLD_CHANGE = 0.25
 
 # History row: a plain tuple (one per IMU sample, so no object overhead), read by these names:
 # time; integral of f_p N, E, D (m/s); platform heading psi; cumulative heading correction;
-# integral of the bias-corrected body rate x, y, z (rad).
-_Row = tuple[float, float, float, float, float, float, float, float, float]
+# integral of the bias-corrected body rate x, y, z (rad); integral of the platform's slope
+# N, E (s: the height per metre north and east that no velocity along body z gives).
+_Row = tuple[float, float, float, float, float, float, float, float, float, float, float]
 _T, _SF, _PSI, _HC, _WI = 0, slice(1, 4), 4, 5, slice(6, 9)
-_SF_N, _SF_E, _SF_D, _WI_X, _WI_Y, _WI_Z = 1, 2, 3, 6, 7, 8
+_SF_N, _SF_E, _SF_D, _WI_X, _WI_Y, _WI_Z, _GI_N, _GI_E = 1, 2, 3, 6, 7, 8, 9, 10
 _row_time = itemgetter(_T)
 
 
@@ -229,6 +230,7 @@ class ObserverEngine:
         self._t_s: float | None = None
         self._sf = [0.0, 0.0, 0.0]  # running integral of f_p, m/s
         self._wi = [0.0, 0.0, 0.0]  # running integral of w_b, rad
+        self._gi = [0.0, 0.0]  # running integral of the platform's slope N, E, s
         self._hc_rad = 0.0  # running integral of the heading control rate
         self._w_pz_rps = 0.0
         self._hist: deque[_Row] = deque(maxlen=HISTORY_LEN)
@@ -376,9 +378,16 @@ class ObserverEngine:
         wi[0] += w_b[0] * dt
         wi[1] += w_b[1] * dt
         wi[2] += w_b[2] * dt
+        gi = self._gi
+        dt_up = dt / c[8]
+        gi[0] += c[2] * dt_up
+        gi[1] += c[5] * dt_up
         self._hist.append(
-            (t, sf[0], sf[1], sf[2], math.atan2(c[3], c[0]), self._hc_rad, wi[0], wi[1], wi[2])
-        )
+            (
+                t, sf[0], sf[1], sf[2], math.atan2(c[3], c[0]), self._hc_rad,
+                wi[0], wi[1], wi[2], gi[0], gi[1],
+            )
+        )  # fmt: skip
         if (
             not self._coasting
             and self._t_vel_rx_s is not None
@@ -804,7 +813,7 @@ class ObserverEngine:
             if along_x is not None:
                 v_tilt, closed = along_x, True
         track = (
-            self._track_epoch(fix, c_e, v_ref)
+            self._track_epoch(fix, c_e, v_ref, row)
             if self._heading_aligned and self._ba_filter is not None
             else None
         )
@@ -1175,8 +1184,8 @@ class ObserverEngine:
         a, b = hist[i - 1], hist[i]
         u = (t_s - a[_T]) / (b[_T] - a[_T])
         psi = (a[_PSI] + u * wrap_pi(b[_PSI] - a[_PSI])) % (2.0 * math.pi)
-        _, a1, a2, a3, _, a5, a6, a7, a8 = a
-        _, b1, b2, b3, _, b5, b6, b7, b8 = b
+        _, a1, a2, a3, _, a5, a6, a7, a8, a9, a10 = a
+        _, b1, b2, b3, _, b5, b6, b7, b8, b9, b10 = b
         return (
             t_s,
             a1 + u * (b1 - a1),
@@ -1187,6 +1196,8 @@ class ObserverEngine:
             a6 + u * (b6 - a6),
             a7 + u * (b7 - a7),
             a8 + u * (b8 - a8),
+            a9 + u * (b9 - a9),
+            a10 + u * (b10 - a10),
         )
 
     def _attitude_at(self, row: _Row, c_bn: Mat9) -> Mat9:
@@ -1347,10 +1358,10 @@ class ObserverEngine:
         self._forward = hint.forward(if_forward, row[_PSI])
         self._forward_known = True
 
-    def _track_epoch(self, fix: GnssFix, c_e: Mat9, v_ref: Float3) -> TrackEpoch | None:
-        """The reference point's height, velocity and the height rate the attitude ``c_e``
-        gives that velocity (a wheeled vehicle has none along its body z), at the epoch, for
-        the accel-bias filter's climb-angle measurement of pitch; None without a height."""
+    def _track_epoch(self, fix: GnssFix, c_e: Mat9, v_ref: Float3, row: _Row) -> TrackEpoch | None:
+        """The reference point's height and velocity at the epoch, with the attitude
+        ``c_e``, and the platform's slope integral of ``row``, for the accel-bias filter's
+        climb-angle measurement of pitch; None without a height."""
         if fix.alt_m is None:
             return None
         l_ant = self._l_ant_f
@@ -1360,7 +1371,7 @@ class ObserverEngine:
             self._fix_sigma_m(fix)[2],
             (v_n, v_e),
             (v_n * c_e[0] + v_e * c_e[3]) / math.hypot(c_e[0], c_e[3]),
-            (v_n * c_e[2] + v_e * c_e[5]) / c_e[8],
+            (row[_GI_N], row[_GI_E]),
             (int(fix.quality), fix.reference_station_id),
         )
 
