@@ -87,6 +87,10 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
         "GP talker, GGA + RMC only (no VTG, GST, ZDA)",
         {"gnss": {"talker": "GP", "vtg": False, "gst": False, "zda": False}},
     ),
+    "rmc-1hz": (
+        "GGA at 10 Hz, RMC, VTG, GST and ZDA at 1 Hz (the velocity once a second)",
+        {"gnss": {"slow_sentences": ["RMC", "VTG", "GST", "ZDA"], "slow_rate_hz": 1.0}},
+    ),
     "hdt": ("dual-antenna heading (HDT)", {"gnss": {"hdt": True}}),
     "imu-mounted-rotated": (
         "IMU upside down and turned 90 deg (config gives the mounting)",
@@ -215,8 +219,8 @@ def run_variant(
             _, position_beyond = position_beyond_mode(frames, truth)
             out[label] = (
                 *rms,
-                math.sqrt(float(np.mean(pos**2))),
-                float(np.max(pos)),
+                math.sqrt(float(np.mean(pos**2))) if pos.size else math.nan,  # none sent
+                float(np.max(pos)) if pos.size else math.nan,
                 checked,
                 len(beyond),
                 len(heading_beyond),

@@ -21,11 +21,15 @@ checksum may omit trailing fields, as some receivers do: they read as empty).
 Epochs. Sentences with the same UTC time of day belong to one epoch; VTG and HDT, which carry
 no time, and sentences with an empty time field belong to the epoch being assembled (or to the
 next one if none is open). An epoch is emitted as soon as it holds every fix sentence type
-(GGA, RMC, VTG, GST, ZDA, HDT) that the last epoch closed by a time change held: for a 10 Hz
-receiver that is the arrival of its last fix sentence, with no wait for the next epoch. Until
-that set is learned, and whenever an epoch lacks a type, the epoch is emitted when the next
-one starts, or by `NmeaDecoder.flush` at end of stream. A sentence arriving for an epoch
-already emitted is counted as unassigned and its type is added to the set, so the next epoch
+(GGA, RMC, VTG, GST, ZDA, HDT) that the last epoch at the same place in the second closed by
+a time change held (at a place not seen yet, the last epoch closed so): for a 10 Hz receiver
+that is the arrival of its last fix sentence, with no wait for the next epoch, and one
+sending GGA at 10 Hz and RMC at 1 Hz has the whole second's epoch wait for its RMC (with one
+set for all epochs, learnt from the GGA-only ones, every RMC after the first second came
+after its epoch had gone: no velocity at all). Until that set is learned, and
+whenever an epoch lacks a type, the epoch is emitted when the next one starts, or by
+`NmeaDecoder.flush` at end of stream. A sentence arriving for an epoch already emitted is
+counted as unassigned and its type is added to the set, so the next epoch at that place
 waits for it.
 """
 
@@ -57,6 +61,9 @@ KNOT_MPS = 1852.0 / 3600.0
 TWO_PI = 2.0 * math.pi
 #: Unknown sentence types counted one by one; any further one is counted under OTHER_TYPES.
 MAX_COUNTED_TYPES = 64
+#: Places in the second whose epochs' sentence types are learnt (20 at 20 Hz); more (epoch
+#: times that are no whole fraction of a second, wandering) start the learning again.
+MAX_PHASES = 100
 OTHER_TYPES = "other"
 
 _START = re.compile(rb"[$!]")
@@ -417,6 +424,12 @@ class NmeaCounters:
     fixes: int = 0  # GnssFix emitted
 
 
+def _phase(tod_ms: int | None) -> int | None:
+    """An epoch time's place in the second, ms (None for an untimed epoch): a receiver may
+    send RMC and VTG at 1 Hz and GGA at 10, and its epochs are then of two kinds."""
+    return None if tod_ms is None else tod_ms % 1000
+
+
 class _Epoch:
     __slots__ = ("parts", "t_host", "tod_ms")
 
@@ -464,7 +477,10 @@ class NmeaDecoder:
         self._candidate_at: tuple[int | None, int] = (None, 0)  # its (record, offset)
         self._epoch: _Epoch | None = None
         self._emitted_tod_ms: int | None = None
-        self._expected: frozenset[str] | None = None  # fix sentence types of a full epoch
+        # fix sentence types of a full epoch, by its time's place in the second (_phase), and
+        # the last learnt, for a place not seen yet
+        self._expected: dict[int | None, frozenset[str]] = {}
+        self._expected_last: frozenset[str] | None = None
         self._date_s: float | None = None  # POSIX time of the last known UTC midnight
         self._last_tod_s: float | None = None
         self._fixes: list[GnssFix] = []
@@ -738,14 +754,16 @@ class NmeaDecoder:
         parts[kind] = values
         if t_host is not None:
             epoch.t_host = t_host
-        expected = self._expected
+        expected = self._expected.get(_phase(epoch.tod_ms), self._expected_last)
         if expected is not None and len(parts) >= len(expected) and expected <= parts.keys():
             self._close_epoch(learn=False)
 
     def _late(self, kind: str) -> None:
         self.counters.unassigned += 1
-        if self._expected is not None:
-            self._expected |= {kind}
+        phase = _phase(self._emitted_tod_ms)
+        expected = self._expected.get(phase, self._expected_last)
+        if expected is not None:
+            self._expected[phase] = expected | {kind}
 
     def _close_epoch(self, *, learn: bool) -> None:
         """Emit the open epoch; ``learn``: it was closed by a new epoch, so it is complete."""
@@ -757,7 +775,10 @@ class NmeaDecoder:
             self.counters.unassigned += len(epoch.parts)
             return
         if learn:
-            self._expected = frozenset(epoch.parts)
+            if len(self._expected) >= MAX_PHASES:  # epoch times that wander within the second
+                self._expected.clear()
+            self._expected_last = frozenset(epoch.parts)
+            self._expected[_phase(epoch.tod_ms)] = self._expected_last
         self._emitted_tod_ms = epoch.tod_ms
         self.counters.fixes += 1
         self._fixes.append(fix)

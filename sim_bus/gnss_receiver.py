@@ -84,6 +84,11 @@ class FixInterval(NamedTuple):
     quality: FixQuality
 
 
+#: The sentence types a receiver may send at a slower rate than its epochs'
+SLOW_SENTENCES = frozenset({"RMC", "VTG", "GST", "ZDA"})
+ALL_SENTENCES = SLOW_SENTENCES | {"GGA", "HDT"}
+
+
 @dataclass(frozen=True)
 class GnssReceiverConfig:
     """Receiver model settings; defaults are a 10 Hz RTK receiver on 115200 baud."""
@@ -94,6 +99,10 @@ class GnssReceiverConfig:
     gst: bool = True
     zda: bool = True
     hdt: bool = False
+    # Sentence types (of RMC, VTG, GST, ZDA) sent at slow_rate_hz only, a whole fraction of
+    # rate_hz, the others at every epoch: a receiver set to send its positions faster
+    slow_sentences: tuple[str, ...] = ()
+    slow_rate_hz: float = 1.0
     # Later intervals override earlier ones; RTK fixed outside every interval.
     fix_schedule: tuple[FixInterval, ...] = ()
     noise: Mapping[FixQuality, NoiseModel] = field(default_factory=lambda: dict(DEFAULT_NOISE))
@@ -117,6 +126,21 @@ class GnssReceiverConfig:
             raise ValueError(
                 f"rate_hz={self.rate_hz}: expected 1, 2, 4, 5, 10 or 20 "
                 "(an epoch of whole centiseconds, as printed in hhmmss.ss)"
+            )
+        if not set(self.slow_sentences) <= SLOW_SENTENCES:
+            raise ValueError(
+                f"slow_sentences={self.slow_sentences}: expected some of "
+                f"{', '.join(sorted(SLOW_SENTENCES))}"
+            )
+        slow_cs = 100.0 / self.slow_rate_hz if self.slow_rate_hz > 0.0 else math.inf
+        if not (
+            self.slow_rate_hz <= self.rate_hz
+            and abs(slow_cs - round(slow_cs)) < 1e-9
+            and round(slow_cs) % self.period_cs == 0
+        ):
+            raise ValueError(
+                f"slow_rate_hz={self.slow_rate_hz} with rate_hz={self.rate_hz}: expected a "
+                "whole fraction of rate_hz (1 with 10 Hz epochs)"
             )
         if len(self.talker) != 2 or not self.talker.isalpha() or not self.talker.isupper():
             raise ValueError(f"talker={self.talker!r}: expected two capital letters, e.g. 'GN'")
@@ -287,20 +311,24 @@ def _format_epochs(
     sep = f"{cfg.geoid_separation_m:.3f}"
     sid = f"{cfg.base_station_id:04d}"
 
+    slow_cs = round(100.0 / cfg.slow_rate_hz)
+    fast = ALL_SENTENCES - set(cfg.slow_sentences)
     bodies: list[str] = []
     line_epoch: list[int] = []
     for i, q_int in enumerate(quality.tolist()):
         q = FixQuality(q_int)
         t, d = times[i], dates[i]
+        sent = ALL_SENTENCES if int(t_cs[i]) % slow_cs == 0 else fast
         ddmmyy = f"{d.day:02d}{d.month:02d}{d.year % 100:02d}"
         mode = MODE_INDICATOR[q]
         epoch: list[str] = []
         if q == FixQuality.NONE:
             epoch.append(f"{tk}GGA,{t},,,,,0,00,99.99,,,,,,")
-            epoch.append(f"{tk}RMC,{t},V,,,,,,,{ddmmyy},,,N")
-            if cfg.vtg:
+            if "RMC" in sent:
+                epoch.append(f"{tk}RMC,{t},V,,,,,,,{ddmmyy},,,N")
+            if cfg.vtg and "VTG" in sent:
                 epoch.append(f"{tk}VTG,,T,,M,,N,,K,N")
-            if cfg.gst:
+            if cfg.gst and "GST" in sent:
                 epoch.append(f"{tk}GST,{t},,,,,,,")
         else:
             lat, ns = lat_txt[i]
@@ -313,13 +341,14 @@ def _format_epochs(
             status = "V" if q == FixQuality.DEAD_RECKONING else "A"  # NMEA: only A/D/F/R valid
             course = "" if math.isnan(cog_deg[i]) else f"{cog_deg[i]:.2f}"
             kn = sog_kn[i]
-            epoch.append(
-                f"{tk}RMC,{t},{status},{lat},{'N' if ns else 'S'},{lon},{'E' if ew else 'W'},"
-                f"{kn:.3f},{course},{ddmmyy},,,{mode}"
-            )
-            if cfg.vtg:
+            if "RMC" in sent:
+                epoch.append(
+                    f"{tk}RMC,{t},{status},{lat},{'N' if ns else 'S'},{lon},"
+                    f"{'E' if ew else 'W'},{kn:.3f},{course},{ddmmyy},,,{mode}"
+                )
+            if cfg.vtg and "VTG" in sent:
                 epoch.append(f"{tk}VTG,{course},T,,M,{kn:.3f},N,{kn * 1.852:.3f},K,{mode}")
-            if cfg.gst:
+            if cfg.gst and "GST" in sent:
                 sh, sv = sig_h[i], sig_v[i]
                 epoch.append(
                     f"{tk}GST,{t},{rms[i]:.3f},{sh:.3f},{sh:.3f},0.0,{sh:.3f},{sh:.3f},{sv:.3f}"
@@ -327,7 +356,7 @@ def _format_epochs(
         if cfg.hdt:
             hdg = "" if math.isnan(hdg_deg[i]) else f"{hdg_deg[i]:.3f}"
             epoch.append(f"{tk}HDT,{hdg},T")
-        if cfg.zda:
+        if cfg.zda and "ZDA" in sent:
             epoch.append(f"{tk}ZDA,{t},{d.day:02d},{d.month:02d},{d.year:04d},00,00")
         bodies.extend(nmea_sentence(b) for b in epoch)
         line_epoch.extend([i] * len(epoch))

@@ -140,6 +140,29 @@ def test_sentence_late_for_an_emitted_epoch_is_counted_and_awaited_next_time() -
     assert decoder.counters.unassigned == 1
 
 
+def test_a_receiver_sending_gga_at_10_hz_and_the_rest_at_1_hz_keeps_every_velocity() -> None:
+    """GGA every 0.1 s, RMC, VTG, GST and ZDA with the whole second's GGA only. With one
+    sentence set learnt for every epoch, the GGA-only epochs taught {GGA}, the whole
+    second's epoch went at its GGA and its RMC came late: no fix had a velocity, and both
+    engines stayed ALIGNING. The set is now learnt per place in the second too: the whole
+    second's epoch waits for its last sentence, the others go at their GGA."""
+    decoder = NmeaDecoder("test")
+    out: list[tuple[float, GnssFix]] = []
+    for k in range(30):  # 3 s
+        tod = f"1235{19 + k // 10}.{k % 10}0"
+        t_host = 100.0 + 0.1 * k
+        rmc, vtg, gga, gst, zda, _ = epoch(tod)
+        lines = [gga, rmc, vtg, gst, zda] if k % 10 == 0 else [gga]
+        for x in lines:
+            out += [(t_host, f) for f in decoder.feed(x.encode() + b"\r\n", t_host)]
+    out += [(math.nan, f) for f in decoder.flush()]
+    assert [f.t_utc for _, f in out] == pytest.approx([T0 + 0.1 * k for k in range(30)])
+    assert [f.sog_mps is not None for _, f in out] == [k % 10 == 0 for k in range(30)]
+    assert decoder.counters.unassigned == 0
+    # from the second second on, each epoch goes with its own last sentence
+    assert all(t == f.t for t, f in out[10:29])
+
+
 def test_midnight_rollover_without_date_in_gga() -> None:
     gga = "GGA,{},4807.0380,N,01131.0000,E,1,08,0.9,545.4,M,46.9,M,,"
     lines = [

@@ -775,9 +775,13 @@ class ObserverEngine:
                     self._at_rest = self._stationary = False
                     self._end_rest()
                 self._update_gates(t_e, ok=None)
-            else:
+            elif fix.sog_mps is not None:
                 self._prev_epoch = None
                 self._update_gates(t_e, ok=False)
+            # else a position without a velocity (a receiver sending GGA at 10 Hz and RMC and
+            # VTG at 1 Hz): the epochs with one go on as if it were not there, the difference
+            # chain, the control period and the gates (ending the chain at each, the tilt
+            # loop never closed: no heading in 16 minutes)
             self._correct_position(fix, t_e, row, c_e, None)
             return
         w_still = self._mean_rate(t_e - STATIONARY_RATE_WINDOW_S, row)
@@ -1102,11 +1106,9 @@ class ObserverEngine:
         sog = fix.sog_mps
         cfg = self.cfg
         self._direction_pending = False
-        if (
-            sog is None
-            or sog >= cfg.course_hold_speed_mps
-            or not (self._heading_aligned and self._nav_valid)
-        ):
+        if sog is None:  # a position alone: the stop and the direction as they were
+            return None
+        if sog >= cfg.course_hold_speed_mps or not (self._heading_aligned and self._nav_valid):
             self._held_forward = self._stop_ne_m = None
             self._t_velocity_s = t_e
             vel = fix_velocity_ne_mps(fix, cfg.stationary_speed_mps)
