@@ -788,8 +788,13 @@ class EkfEngine:
         same rate again: after the bias re-opened (0.15 deg/s 1-sigma), a stop's spans
         took a +0.14 deg/s error as +0.37 and moved the heading 1.6 deg past the truth."""
         rest = self._rest_epochs
+        if fix.sog_mps is None:
+            # a position alone says nothing of the motion: the rest goes on (a receiver
+            # sending GGA at 10 Hz and RMC at 1 Hz cut every stop into nothing: no zero-rate
+            # update, the heading 8.6 deg off after 5 min parked, DEGRADED)
+            return []
         self._pending_turn_rad = 0.0
-        if fix.sog_mps is None or fix.sog_mps >= self.cfg.stationary_speed_mps:
+        if fix.sog_mps >= self.cfg.stationary_speed_mps:
             rest.clear()
             return []
         hist, tun, p, ins = self._hist, self._tuning, self._p, self._ins
