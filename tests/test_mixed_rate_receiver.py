@@ -21,13 +21,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from gateway.config.gateway_config import Engine, load_config
+from gateway.config.gateway_config import Engine
 from gateway.estimation.solution import Mode
-from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SimRun, generate, scenario_from_toml
-from sim_bus.truth import Truth
 from tests.n2k_check import (
-    attitude_errors_deg,
     decode_log,
     heading_beyond_navigating,
     position_beyond_mode,
@@ -35,6 +32,7 @@ from tests.n2k_check import (
     status_modes,
     tilt_beyond_stated,
 )
+from tests.sim_replay import replay_run, second_half_rms_deg
 
 SLOW = ["RMC", "VTG", "GST", "ZDA"]
 RECEIVER = {"slow_sentences": SLOW, "slow_rate_hz": 1.0}
@@ -75,17 +73,12 @@ def test_the_receiver_sends_the_slow_sentences_on_whole_seconds(mixed_rate: SimR
 def test_both_engines_navigate_on_a_velocity_once_a_second(
     mixed_rate: SimRun, engine: Engine, tmp_path: Path
 ) -> None:
-    truth = Truth.load(mixed_rate.truth_file)
     out = tmp_path / "out.log"
-    config = load_config(mixed_rate.config_file).with_engine(engine)
-    replay(mixed_rate.imu_log, mixed_rate.gnss_log, out, config)
-    decoded = decode_log(out)
-    half_s = 0.5 * float(truth.t[-1] - truth.t[0])
-    roll, pitch, yaw = np.sqrt(
-        np.mean(np.square(attitude_errors_deg(decoded, truth, half_s)), axis=0)
-    )
+    truth = replay_run(mixed_rate, engine, out)
+    roll, pitch, yaw = second_half_rms_deg(out, truth)
     assert roll < 0.12 and pitch < 0.12 and yaw < 0.35, (roll, pitch, yaw)
-    ref_cm = position_errors_m(decoded, truth, half_s) * 100.0
+    half_s = 0.5 * float(truth.t[-1] - truth.t[0])
+    ref_cm = position_errors_m(decode_log(out), truth, half_s) * 100.0
     ref_cm = ref_cm[np.isfinite(ref_cm)]
     assert ref_cm.size > 2000 and np.sqrt(np.mean(ref_cm**2)) < 5.0
     checked, beyond = tilt_beyond_stated(out, truth)
@@ -102,17 +95,13 @@ def test_a_long_stop_keeps_the_heading_with_a_velocity_once_a_second(
     position alone cleared the spans, so no stop held the z gyro bias: DEGRADED from 50 s
     into the stop to its end, the heading 0.68 deg off and yaw RMS over the second half
     0.45 deg. Now such an epoch leaves the rest as it is: NAVIGATING through the stop."""
-    truth = Truth.load(mixed_rate_stop.truth_file)
     out = tmp_path / "out.log"
-    config = load_config(mixed_rate_stop.config_file).with_engine(engine)
-    replay(mixed_rate_stop.imu_log, mixed_rate_stop.gnss_log, out, config)
+    truth = replay_run(mixed_rate_stop, engine, out)
     stop = truth.t[truth.stationary] - truth.t[0]
     stop = stop[(stop > 50.0) & (stop < 250.0)]  # the stop, not the start's rest
     assert 170.0 < stop[-1] - stop[0] < 190.0
     modes = [(t - truth.t[0], m) for t, m in status_modes(out)]
     assert all(m == int(Mode.NAVIGATING) for t, m in modes if stop[0] + 5.0 < t < stop[-1])
-    half_s = 0.5 * float(truth.t[-1] - truth.t[0])
-    yaw = attitude_errors_deg(decode_log(out), truth, half_s)[:, 2]
-    assert np.sqrt(np.mean(yaw**2)) < 0.2
+    assert second_half_rms_deg(out, truth)[2] < 0.2
     assert tilt_beyond_stated(out, truth)[1] == []
     assert heading_beyond_navigating(out, truth)[1] == []

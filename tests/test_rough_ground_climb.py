@@ -18,14 +18,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import numpy as np
 import pytest
 
-from gateway.config.gateway_config import Engine, load_config
-from gateway.offline.log_replay import replay
+from gateway.config.gateway_config import Engine
 from sim_bus.scenarios import SimRun, generate, scenario_from_toml
-from sim_bus.truth import Truth
-from tests.n2k_check import attitude_errors_deg, decode_log, tilt_beyond_stated
+from tests.n2k_check import tilt_beyond_stated
+from tests.sim_replay import replay_run, second_half_rms_deg
 
 #: benchmarks/robustness.py's `rough-slope` ground (3x the bumps, 6-9 deg across, 4 along)
 ROUGH_GROUND = {
@@ -52,13 +50,9 @@ def rough_1hz(tmp_path_factory: pytest.TempPathFactory) -> SimRun:
 def test_a_rough_straight_at_1_hz_is_no_climb_for_the_observer(
     rough_1hz: SimRun, tmp_path: Path
 ) -> None:
-    truth = Truth.load(rough_1hz.truth_file)
     out = tmp_path / "out.log"
-    config = load_config(rough_1hz.config_file).with_engine(Engine.OBSERVER)
-    replay(rough_1hz.imu_log, rough_1hz.gnss_log, out, config)
-    half_s = 0.5 * float(truth.t[-1] - truth.t[0])
-    errors = attitude_errors_deg(decode_log(out), truth, half_s)
-    roll, pitch, _ = np.sqrt(np.mean(np.square(errors), axis=0))
+    truth = replay_run(rough_1hz, Engine.OBSERVER, out)
+    roll, pitch, _ = second_half_rms_deg(out, truth)
     assert roll < 0.18 and pitch < 0.18, (roll, pitch)
     checked, beyond = tilt_beyond_stated(out, truth)
     assert checked > 6_000 and beyond == [], beyond[:5]

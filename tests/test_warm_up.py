@@ -17,7 +17,6 @@ import dataclasses
 import math
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from gateway.config.gateway_config import Engine, load_config
@@ -25,11 +24,10 @@ from gateway.offline.log_replay import replay
 from sim_bus.scenarios import SimRun, generate, scenario_from_toml
 from sim_bus.truth import Truth
 from tests.n2k_check import (
-    attitude_errors_deg,
-    decode_log,
     heading_beyond_navigating,
     tilt_beyond_stated,
 )
+from tests.sim_replay import replay_run, second_half_rms_deg
 
 WARM_UP = {
     "temp_start_c": 5.0,
@@ -50,14 +48,9 @@ def warming(tmp_path_factory: pytest.TempPathFactory) -> SimRun:
 def test_both_engines_follow_a_warming_unit_s_biases(
     warming: SimRun, engine: Engine, tmp_path: Path
 ) -> None:
-    truth = Truth.load(warming.truth_file)
     out = tmp_path / "out.log"
-    replay(
-        warming.imu_log, warming.gnss_log, out, load_config(warming.config_file).with_engine(engine)
-    )
-    half_s = 0.5 * float(truth.t[-1] - truth.t[0])
-    errors = attitude_errors_deg(decode_log(out), truth, half_s)
-    roll, pitch, yaw = np.sqrt(np.mean(np.square(errors), axis=0))
+    truth = replay_run(warming, engine, out)
+    roll, pitch, yaw = second_half_rms_deg(out, truth)
     assert roll < 0.115 and pitch < 0.115 and yaw < 0.13, (roll, pitch, yaw)
     checked, beyond = tilt_beyond_stated(out, truth)
     assert checked > 8_000 and beyond == []

@@ -1,0 +1,29 @@
+"""A simulated run through ``navgw replay``'s code with one engine: the tests' one way to it."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from gateway.config.gateway_config import Engine, load_config
+from gateway.offline.log_replay import replay
+from sim_bus.scenarios import SimRun
+from sim_bus.truth import Truth
+from tests.n2k_check import attitude_errors_deg, decode_log
+
+
+def replay_run(run: SimRun, engine: Engine, out: Path) -> Truth:
+    """Replay ``run``'s logs with its navgw.toml and ``engine`` into ``out`` (candump -L);
+    the run's truth."""
+    replay(run.imu_log, run.gnss_log, out, load_config(run.config_file).with_engine(engine))
+    return Truth.load(run.truth_file)
+
+
+def second_half_rms_deg(out: Path, truth: Truth) -> tuple[float, float, float]:
+    """Roll, pitch and yaw RMS (deg) of the 127257 frames in ``out`` over the run's second
+    half, decoded by the independent ``nmea2000`` package."""
+    half_s = 0.5 * float(truth.t[-1] - truth.t[0])
+    errors = attitude_errors_deg(decode_log(out), truth, half_s)
+    roll, pitch, yaw = np.sqrt(np.mean(np.square(errors), axis=0))
+    return float(roll), float(pitch), float(yaw)
