@@ -132,11 +132,10 @@ class GnssReceiverConfig:
                 f"slow_sentences={self.slow_sentences}: expected some of "
                 f"{', '.join(sorted(SLOW_SENTENCES))}"
             )
-        slow_cs = 100.0 / self.slow_rate_hz if self.slow_rate_hz > 0.0 else math.inf
         if not (
-            self.slow_rate_hz <= self.rate_hz
-            and abs(slow_cs - round(slow_cs)) < 1e-9
-            and round(slow_cs) % self.period_cs == 0
+            0.0 < self.slow_rate_hz <= self.rate_hz
+            and abs(100.0 / self.slow_rate_hz - round(100.0 / self.slow_rate_hz)) < 1e-9
+            and round(100.0 / self.slow_rate_hz) % self.period_cs == 0
         ):
             raise ValueError(
                 f"slow_rate_hz={self.slow_rate_hz} with rate_hz={self.rate_hz}: expected a "

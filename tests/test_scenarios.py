@@ -94,6 +94,10 @@ def test_toml_overrides_a_base_scenario() -> None:
         ({"base": "moon"}, "scenario.base = 'moon': expected one of field"),
         ({"imu": {"gyro_bias": 1}}, "unknown key imu.gyro_bias: expected one of"),
         ({"gnss": {"rate_hz": 3}}, "[gnss] rate_hz=3.0: expected 1, 2, 4, 5, 10 or 20"),
+        ({"gnss": {"slow_rate_hz": 0}}, "[gnss] slow_rate_hz=0.0 with rate_hz=10.0: expected"),
+        ({"gnss": {"slow_rate_hz": 3}}, "[gnss] slow_rate_hz=3.0 with rate_hz=10.0: expected"),
+        ({"gnss": {"slow_rate_hz": -1}}, "[gnss] slow_rate_hz=-1.0 with rate_hz=10.0: expected"),
+        ({"gnss": {"slow_sentences": ["GGA"]}}, "[gnss] slow_sentences=('GGA',): expected some"),
         ({"weather": {}}, "unknown key 'weather' in scenario"),
     ],
 )
