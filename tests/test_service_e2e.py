@@ -339,16 +339,25 @@ def test_in_process_through_steps_of_the_host_clock(
     steps. On the tree before, the IMU's anchor slid 0.3 s over 10 s, its samples that far
     behind the clock dropped as stale (2,420 of them), and the fixes took both steps into
     their delays (replay of such logs: 3 % of the observer's tilt frames beyond their stated
-    accuracy, 809 positions beyond NAVIGATING's 0.2 m)."""
+    accuracy, 809 positions beyond NAVIGATING's 0.2 m).
+
+    A fix read between a step and the IMU's arrivals showing it (0.25-0.375 s) is on the new
+    clock, as nothing yet tells the service otherwise (a step back: dropped as out of order);
+    under load a reader held up past the step read one so (CI, 2026-12-07: -0.89 s of
+    delay, the step -1 s): such fixes are left out of the delays compared."""
     truth = Truth.load(run_dir / "truth.npz")
     out_log = tmp_path / "live.log"
     delays: list[tuple[float, float]] = []  # (UTC from the start, receive delay), s
 
     def watch(service: GatewayService) -> None:
         on_input = service.core.on_input
+        clock = service.timebase
+        assert isinstance(clock, SteppedClock)
 
         def seen(item: ImuSample | ImuAux | GnssFix | BusFrame) -> Iterator[can.Message]:
-            if isinstance(item, GnssFix) and item.t_utc is not None:
+            stepped = sum(time.time() >= wall for wall, _ in clock.steps)
+            found = len(service.imu_decoder.host_clock.steps)
+            if isinstance(item, GnssFix) and item.t_utc is not None and stepped == found:
                 delays.append((item.t_utc - truth.t[0], item.t - item.t_utc))
             return on_input(item)
 
