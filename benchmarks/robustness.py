@@ -91,6 +91,11 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
         "GGA at 10 Hz, RMC, VTG, GST and ZDA at 1 Hz (the velocity once a second)",
         {"gnss": {"slow_sentences": ["RMC", "VTG", "GST", "ZDA"], "slow_rate_hz": 1.0}},
     ),
+    "dr-hold": (
+        "through an outage the receiver carries its last fix on at its velocity for 20 s, "
+        "as dead reckoning (a u-blox without sensors)",
+        {"gnss": {"dead_reckoning_limit_s": 20.0}},
+    ),
     "hdt": ("dual-antenna heading (HDT)", {"gnss": {"hdt": True}}),
     "imu-mounted-rotated": (
         "IMU upside down and turned 90 deg (config gives the mounting)",

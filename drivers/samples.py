@@ -35,6 +35,15 @@ class FixQuality(IntEnum):
 #: corrections are theirs; the corrections' age degrades them).
 CORRECTED_QUALITIES = frozenset({FixQuality.DGNSS, FixQuality.RTK_FIXED, FixQuality.RTK_FLOAT})
 
+#: Qualities whose positions and velocities measure the antenna. A receiver's dead reckoning
+#: (6) is its last solution carried on (u-blox holds the velocity, course and all, up to its
+#: drLimit; others run sensors of their own) and manual input (7) a position typed in:
+#: neither is a measurement, so the engines coast on their own IMU through them, as through
+#: epochs without a fix.
+MEASURING_QUALITIES = frozenset(
+    set(FixQuality) - {FixQuality.NONE, FixQuality.DEAD_RECKONING, FixQuality.MANUAL}
+)
+
 
 @dataclass(frozen=True, slots=True)
 class ImuSample:
@@ -77,7 +86,6 @@ DEFAULT_GNSS_SIGMAS: dict[int, tuple[float, float, float]] = {
     2: (0.5, 1.0, 0.05),  # DGNSS
     4: (0.02, 0.04, 0.02),  # RTK fixed
     5: (0.2, 0.4, 0.04),  # RTK float
-    6: (3.0, 6.0, 0.3),  # dead reckoning
 }
 
 
@@ -116,6 +124,11 @@ class GnssFix:
     # host time less ``t``: the host clock's steps taken out of the receive time, s
     # (drivers.host_clock; 0 while it has not stepped)
     host_offset_s: float = 0.0
+
+    @property
+    def measures(self) -> bool:
+        """Whether the epoch measures the antenna (:data:`MEASURING_QUALITIES`)."""
+        return self.quality in MEASURING_QUALITIES
 
     @property
     def position_sigma_m(self) -> tuple[float, float, float] | None:

@@ -105,6 +105,10 @@ class GnssReceiverConfig:
     slow_rate_hz: float = 1.0
     # Later intervals override earlier ones; RTK fixed outside every interval.
     fix_schedule: tuple[FixInterval, ...] = ()
+    # A receiver without sensors of its own carrying its last fix on through an outage, s:
+    # epochs without a fix up to this long after it are DEAD_RECKONING at its position moved
+    # on at its velocity, course and all (u-blox's drLimit); 0 sends them without a fix
+    dead_reckoning_limit_s: float = 0.0
     noise: Mapping[FixQuality, NoiseModel] = field(default_factory=lambda: dict(DEFAULT_NOISE))
     heading_sigma_rad: float = math.radians(0.15)
     latency_s: float = 0.040
@@ -143,6 +147,11 @@ class GnssReceiverConfig:
             )
         if len(self.talker) != 2 or not self.talker.isalpha() or not self.talker.isupper():
             raise ValueError(f"talker={self.talker!r}: expected two capital letters, e.g. 'GN'")
+        if not 0.0 <= self.dead_reckoning_limit_s < math.inf:
+            raise ValueError(
+                f"dead_reckoning_limit_s={self.dead_reckoning_limit_s}: expected a finite "
+                "time, s, 0 or more (0: no dead reckoning)"
+            )
         for interval in self.fix_schedule:
             quality = FixQuality(interval[2])
             if quality != FixQuality.NONE and quality not in self.noise:
@@ -235,9 +244,16 @@ def simulate_receiver(truth: Truth, config: GnssReceiverConfig | None = None) ->
         vel_sigma[sel] = model.sigma_vel_mps
         sigma_h[sel], sigma_v[sel] = model.sigma_h_m, model.sigma_v_m
 
-    lla = ned_to_lla(pos_ned + pos_err, truth.origin_lla)
-    lla[~fix] = np.nan
+    pos_ned = pos_ned + pos_err
     vel_ne = vel_ne + vel_sigma[:, None] * rng.standard_normal((n, 2))
+    if cfg.dead_reckoning_limit_s > 0.0:
+        _carry_on(t_utc, quality, pos_ned, vel_ne, cfg.dead_reckoning_limit_s)
+        fix = quality != FixQuality.NONE
+        carried = quality == FixQuality.DEAD_RECKONING
+        model = cfg.noise.get(FixQuality.DEAD_RECKONING, DEFAULT_NOISE[FixQuality.DEAD_RECKONING])
+        sigma_h[carried], sigma_v[carried] = model.sigma_h_m, model.sigma_v_m
+    lla = ned_to_lla(pos_ned, truth.origin_lla)
+    lla[~fix] = np.nan
     vel_ne[~fix] = np.nan
     sog = np.hypot(vel_ne[:, 0], vel_ne[:, 1])
     cog = np.mod(np.arctan2(vel_ne[:, 1], vel_ne[:, 0]), 2.0 * np.pi)
@@ -265,6 +281,22 @@ def simulate_receiver(truth: Truth, config: GnssReceiverConfig | None = None) ->
     host_t = _receive_times(cfg, rng, t_host, bodies, line_epoch)
     lines = [NmeaLine(float(t), s) for t, s in zip(host_t, bodies, strict=True)]
     return ReceiverOutput(lines, t_utc, quality, lla, vel_ne, heading)
+
+
+def _carry_on(
+    t_utc: Array, quality: npt.NDArray[np.int64], pos_ned: Array, vel_ne: Array, limit_s: float
+) -> None:
+    """Epochs without a fix up to ``limit_s`` after the last fix become DEAD_RECKONING: its
+    position moved on at its velocity, the velocity held (in place)."""
+    last = -1
+    for i, q in enumerate(quality.tolist()):
+        if q != FixQuality.NONE:
+            last = i if q != FixQuality.DEAD_RECKONING else last
+        elif last >= 0 and t_utc[i] - t_utc[last] <= limit_s:
+            quality[i] = FixQuality.DEAD_RECKONING
+            pos_ned[i, :2] = pos_ned[last, :2] + vel_ne[last] * (t_utc[i] - t_utc[last])
+            pos_ned[i, 2] = pos_ned[last, 2]
+            vel_ne[i] = vel_ne[last]
 
 
 def _format_epochs(

@@ -192,6 +192,30 @@ def test_fix_quality_follows_the_schedule_and_outages_give_no_fix() -> None:
             assert gst[t].std_dev_latitude == pytest.approx(sigma, abs=1e-3)
 
 
+def test_dead_reckoning_carries_the_last_fix_on_at_its_velocity_up_to_the_limit() -> None:
+    """u-blox's drLimit: through an outage a receiver without sensors sends its last fix
+    moved on at its last velocity, course and all, as DEAD_RECKONING, for up to the limit;
+    then no fix. On a circle the carried positions leave the turn along its tangent."""
+    cfg = GnssReceiverConfig(
+        fix_schedule=(FixInterval(4.0, 8.0, FixQuality.NONE),), dead_reckoning_limit_s=2.0
+    )
+    out = simulate_receiver(circle_truth(10.0), cfg)
+    rel = out.t_utc - T0
+    last = int(np.flatnonzero(rel < 4.0)[-1])
+    carried = out.quality == FixQuality.DEAD_RECKONING
+    dt = rel[carried] - rel[last]
+    assert carried.sum() == 20 and np.all((dt > 0.0) & (dt <= 2.0 + 1e-9))
+    assert np.all(out.quality[(rel >= 4.0) & (rel < 8.0) & ~carried] == FixQuality.NONE)
+    assert (out.quality[(rel >= 4.0) & (rel < 8.0)] == FixQuality.NONE).sum() == 20
+    assert np.array_equal(out.vel_ne_mps[carried], np.tile(out.vel_ne_mps[last], (20, 1)))
+    ned = lla_to_ned(out.lla, ORIGIN)
+    expected = ned[last, :2] + out.vel_ne_mps[last] * dt[:, None]
+    assert np.allclose(ned[carried, :2], expected, atol=1e-3)
+    assert np.allclose(ned[carried, 2], ned[last, 2], atol=1e-3)
+    rmc = {round(utc_of(m, DAY_START) - T0, 2): m for _, m in parsed(out, "RMC")}
+    assert all(rmc[round(r, 2)].mode_indicator == "E" for r in rel[carried])
+
+
 def test_epochs_on_whole_multiples_and_receive_times_after_latency() -> None:
     cfg = GnssReceiverConfig(
         rate_hz=20.0, latency_s=0.05, latency_jitter_s=0.002, host_clock_offset_s=0.5

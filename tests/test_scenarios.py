@@ -97,6 +97,10 @@ def test_toml_overrides_a_base_scenario() -> None:
         ({"gnss": {"slow_rate_hz": 0}}, "[gnss] slow_rate_hz=0.0 with rate_hz=10.0: expected"),
         ({"gnss": {"slow_rate_hz": 3}}, "[gnss] slow_rate_hz=3.0 with rate_hz=10.0: expected"),
         ({"gnss": {"slow_rate_hz": -1}}, "[gnss] slow_rate_hz=-1.0 with rate_hz=10.0: expected"),
+        (
+            {"gnss": {"dead_reckoning_limit_s": -1}},
+            "[gnss] dead_reckoning_limit_s=-1.0: expected a finite time, s, 0 or more",
+        ),
         ({"gnss": {"slow_sentences": ["GGA"]}}, "[gnss] slow_sentences=('GGA',): expected some"),
         ({"weather": {}}, "unknown key 'weather' in scenario"),
     ],

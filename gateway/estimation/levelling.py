@@ -57,7 +57,7 @@ class WindowMotion:
         parked vehicle's first alignment took its rest for unknown motion (11.5 deg of tilt
         sigma) and, started with it, its filter went 7 deg off while stating 0.4 (outages
         seed 101, a stall at 25 s)."""
-        vel = fix_velocity_ne_mps(fix, self.stationary_speed_mps)
+        vel = fix_velocity_ne_mps(fix, self.stationary_speed_mps) if fix.measures else None
         if vel is None or not math.isfinite(vel[0] + vel[1] + fix.t):
             self._moving |= fix.sog_mps is not None and fix.sog_mps >= self.stationary_speed_mps
             return

@@ -271,7 +271,7 @@ class FusionCore:
                 self.engine.gnss(item)
             except Exception as err:  # a bug must not stop the gateway: _engine_raised
                 return self._counted(self._engine_raised(item.t, "a GNSS fix", err))
-            if self.mounting is not None or self.lever_arm is not None:
+            if item.measures and (self.mounting is not None or self.lever_arm is not None):
                 self._fix_to_check = item
             if self.rest is not None:
                 self.rest.gnss(item)

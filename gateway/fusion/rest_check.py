@@ -23,7 +23,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, replace
 
-from drivers.samples import FixQuality, Float3, GnssFix, ImuSample
+from drivers.samples import Float3, GnssFix, ImuSample
 from drivers.units import DEG_TO_RAD, MG_MPS2
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import fix_position_sigma_m, fix_velocity_sigma_mps
@@ -104,7 +104,7 @@ class RestMean:
         """A fix: standing (a position, speed below :data:`STILL_SPEED_MPS`) or not."""
         sigma = fix_position_sigma_m(fix)
         standing = (
-            fix.quality != FixQuality.NONE
+            fix.measures
             and fix.lat_deg is not None
             and fix.lon_deg is not None
             and sigma is not None
@@ -181,7 +181,7 @@ class RestMean:
 def drove_off(fix: GnssFix) -> bool:
     """The fix says the vehicle is driving (not a standing receiver's speed noise)."""
     noise = DRIVING_SIGMAS * fix_velocity_sigma_mps(fix, 0.0)
-    return fix.sog_mps is not None and fix.sog_mps >= max(DRIVING_SPEED_MPS, noise)
+    return fix.measures and fix.sog_mps is not None and fix.sog_mps >= max(DRIVING_SPEED_MPS, noise)
 
 
 def check_seed(

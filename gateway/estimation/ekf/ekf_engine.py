@@ -639,11 +639,11 @@ class EkfEngine:
         An epoch whose time is ahead of the last IMU sample waits until the IMU covers it.
         """
         self._last_fix = fix
-        if fix.sog_mps is not None and fix.quality != FixQuality.NONE:
+        if fix.sog_mps is not None and fix.measures:
             self._speed_seen = (fix.t, fix.sog_mps < self.cfg.stationary_speed_mps)
         if self._p is None:  # (before a window too: the velocity at its start)
             self._win_motion.add(fix)
-        if self._ins is None or fix.quality == FixQuality.NONE:
+        if self._ins is None or not fix.measures:
             return
         t_e = self.clock.epoch_time(fix)
         if t_e is None:
@@ -1792,7 +1792,7 @@ class EkfEngine:
             self._sigma_tilt_rad(),
             quality, sats, hdop, age, geoid, station, talker,
             p is not None and coasting_s == 0.0 and fix is not None
-            and fix.quality != FixQuality.NONE,  # gnss_ok
+            and fix.measures,  # gnss_ok
             imu.ok, imu.alarm, self._reversing, self._stationary, coasting_s > 0.0,
             True, self._convergence(coasting_s),  # is_ekf, convergence
         )  # fmt: skip

@@ -744,7 +744,7 @@ class ObserverEngine:
         self._last_fix = fix
         if self._observer is None:  # (before a window too: the velocity at its start)
             self._align_motion.add(fix)
-        if self._observer is None or fix.quality == FixQuality.NONE:
+        if self._observer is None or not fix.measures:
             return
         t_e = self.clock.epoch_time(fix)
         if t_e is not None and not self._held.hold(t_e, fix, self._t_s):
@@ -1991,7 +1991,7 @@ class ObserverEngine:
 
     def _fix_sigma_m(self, fix: GnssFix) -> tuple[float, float, float]:
         """The fix's position 1-sigma NED (:func:`fix_position_sigma_m`); a quality without
-        a typical figure (PPS, manual, simulation) is taken as single-point."""
+        a typical figure (PPS, simulation) is taken as single-point."""
         sigma = fix_position_sigma_m(fix)
         if sigma is not None:
             return sigma
@@ -2094,10 +2094,7 @@ class ObserverEngine:
             self._coasting_s(), gap_beyond_s(self._t_s, self._t_pos_rx_s, self.cfg.gnss_timeout_s)
         )
         gnss_ok = (
-            fix is not None
-            and fix.quality != FixQuality.NONE
-            and self._t_vel_rx_s is not None
-            and coasting_s == 0.0
+            fix is not None and fix.measures and self._t_vel_rx_s is not None and coasting_s == 0.0
         )
         lat = lon = alt = None
         vel = None
