@@ -829,7 +829,9 @@ class NmeaDecoder:
             quality,
             lat if valid and lon is not None else None,  # lat_deg
             lon if valid and lat is not None else None,  # lon_deg
-            alt_msl + sep if valid and alt_msl is not None and sep is not None else None,  # alt_m
+            # alt_m: without a geoid separation the MSL altitude, a height of unknown datum
+            # but right in its changes (geoid_sep_m None says so; the output sends no altitude)
+            alt_msl + (sep or 0.0) if valid and alt_msl is not None else None,
             None if num_sats is None else int(num_sats),
             g["hdop"],
             g["age_s"],

@@ -104,7 +104,9 @@ class GnssFix:
     quality: FixQuality
     lat_deg: float | None = None
     lon_deg: float | None = None
-    alt_m: float | None = None  # ellipsoidal height = GGA altitude (MSL) + geoid separation
+    # ellipsoidal height = GGA altitude (MSL) + geoid separation; the MSL altitude when the
+    # receiver sends no separation (geoid_sep_m None): its datum unknown, its changes right
+    alt_m: float | None = None
     num_sats: int | None = None
     hdop: float | None = None
     age_s: float | None = None  # age of differential corrections

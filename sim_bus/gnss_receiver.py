@@ -115,7 +115,9 @@ class GnssReceiverConfig:
     latency_jitter_s: float = 0.003
     baud: int = 115200
     host_clock_offset_s: float = 0.0  # host clock minus UTC: the sentences' times are shifted
-    geoid_separation_m: float = 47.0  # GGA field: ellipsoidal height minus MSL altitude
+    # GGA field: ellipsoidal height minus MSL altitude; None sends it blank, the altitude
+    # the ellipsoid's (a receiver without a geoid model)
+    geoid_separation_m: float | None = 47.0
     num_sats: int = 22  # mean number of satellites used
     hdop: float = 0.7  # HDOP with num_sats satellites
     correction_period_s: float = 1.0  # base station message interval (UTC-aligned)
@@ -332,14 +334,14 @@ def _format_epochs(
     dates = [days[d] for d in (t_cs // day_cs).tolist()]
     lat_txt = _ddmm(np.nan_to_num(lla[:, 0]), 2)
     lon_txt = _ddmm(np.nan_to_num(lla[:, 1]), 3)
-    alt_msl = (lla[:, 2] - cfg.geoid_separation_m).tolist()
+    alt_msl = (lla[:, 2] - (cfg.geoid_separation_m or 0.0)).tolist()
     sog_kn = (sog / KNOT_MPS).tolist()
     cog_deg = np.degrees(cog).tolist()
     hdg_deg = np.degrees(heading).tolist()
     rms = np.sqrt(2.0 * sigma_h**2 + sigma_v**2).tolist()
     sats_n, hdop_v, age_s = sats.tolist(), hdop.tolist(), age.tolist()
     sig_h, sig_v = sigma_h.tolist(), sigma_v.tolist()
-    sep = f"{cfg.geoid_separation_m:.3f}"
+    sep = "" if cfg.geoid_separation_m is None else f"{cfg.geoid_separation_m:.3f}"
     sid = f"{cfg.base_station_id:04d}"
 
     slow_cs = round(100.0 / cfg.slow_rate_hz)

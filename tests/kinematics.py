@@ -239,6 +239,7 @@ def gnss_stream(
                 lat_deg=float(lla[k, 0]),
                 lon_deg=float(lla[k, 1]),
                 alt_m=float(lla[k, 2]),
+                geoid_sep_m=47.0,  # as a receiver with a geoid model sends it
                 num_sats=20,
                 hdop=0.7,
                 sog_mps=math.hypot(vn, ve),

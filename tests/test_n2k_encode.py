@@ -206,6 +206,17 @@ def test_geoid_separation_only_with_the_altitude() -> None:
     assert gnss_fields(replace(FULL, geoid_sep_m=-31.44))["geoid"] == pytest.approx(-31.44)
 
 
+def test_no_altitude_without_the_geoid_separation() -> None:
+    """A receiver that sends no separation gives its altitude above the geoid (MSL), or
+    above an ellipsoid it does not name: 129029's altitude is the WGS-84 ellipsoid's, so it
+    goes out "not available" (47 m off here) while the position goes out as ever."""
+    d = decode(replace(FULL, geoid_sep_m=None))["gnssPositionData"]
+    assert d["altitude"].value is None and d["geoidalSeparation"].value is None
+    assert d["latitude"].value == pytest.approx(FULL.lat_deg, abs=1e-9)
+    full = decode(FULL)["gnssPositionData"]
+    assert full["altitude"].value == pytest.approx(FULL.alt_m, abs=1e-3)
+
+
 def solution_of(fix: GnssFix) -> Solution:
     """The solution an engine reports with ``fix`` as its last: the fix fields as every engine
     copies them, the receiver's position (lever arms are tested elsewhere)."""

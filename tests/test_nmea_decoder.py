@@ -107,7 +107,10 @@ def test_geoid_separation_age_and_reference_station_of_gga(
 ) -> None:
     (fix,), _ = decode(stream(s(f"GGA,123519.00,4807.0380,N,01131.0000,E,2,08,0.9,545.4,M,{tail}")))
     assert (fix.geoid_sep_m, fix.age_s, fix.reference_station_id) == expected
-    assert fix.alt_m == (None if expected[0] is None else 545.4 + expected[0])
+    # without a separation the MSL altitude: a height of unknown datum (geoid_sep_m None), by
+    # which the engines still navigate (receivers without a geoid model send none; before,
+    # no position of theirs was used: tests/test_receiver_without_geoid.py)
+    assert fix.alt_m == pytest.approx(545.4 + (expected[0] or 0.0))
 
 
 def test_a_malformed_reference_station_is_a_parse_error() -> None:

@@ -83,13 +83,15 @@ def test_reassembled_129029_payload_has_the_id_of_its_frames_on_the_bus() -> Non
 
 def test_reassembled_payload_decodes_with_cantools() -> None:
     sol = Solution(t=1_700_000_000.5, mode=Mode.NAVIGATING, lat_deg=48.1, lon_deg=11.6, alt_m=520.0)
+    sol = replace(sol, geoid_sep_m=47.0)
     payload = OutputEncoder().payload(Pgn.GNSS_POSITION_DATA, sol, LoopStatus(), 9)
     decoded = PAYLOADS.get_message_by_frame_id(0x0DF8051C).decode(payload)
     assert isinstance(decoded, dict)  # a plain message, not a container
     assert decoded["SID"] == 9
     assert decoded["LATITUDE"] == pytest.approx(48.1, abs=1e-12)
     assert decoded["ALTITUDE"] == pytest.approx(520.0, abs=1e-6)
-    for name in ("METHOD", "HDOP", "GNSS_TYPE", "GEOIDAL_SEPARATION", "REFERENCE_STATION_ID"):
+    assert decoded["GEOIDAL_SEPARATION"] == pytest.approx(47.0)
+    for name in ("METHOD", "HDOP", "GNSS_TYPE", "REFERENCE_STATION_ID"):
         assert str(decoded[name]) == "NOT_AVAILABLE", name
     rtk = replace(
         sol, fix_quality=FixQuality.RTK_FIXED, geoid_sep_m=-31.44, reference_station_id=2,

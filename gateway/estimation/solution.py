@@ -70,7 +70,7 @@ class Solution:
     yaw_rate_rps: float | None = None  # bias-corrected rate of turn, clockwise positive
     lat_deg: float | None = None
     lon_deg: float | None = None
-    alt_m: float | None = None  # ellipsoidal height
+    alt_m: float | None = None  # ellipsoidal height; of unknown datum without geoid_sep_m
     vel_ned_mps: tuple[float, float, float] | None = None
     bias_g_rps: Float3 | None = None  # gyro bias estimate, body FRD
     bias_a_mps2: Float3 | None = None  # accelerometer bias estimate, body FRD

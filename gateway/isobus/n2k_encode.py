@@ -164,10 +164,13 @@ def gnss_position(s: Solution, _: LoopStatus, sid: int) -> Values:
     Each fix field describes the position sent (the output guard makes a coasting one dead
     reckoning): the GNSS type from the talker only where it is one system and the quality
     says the talker's systems are all there is; the station id only for a corrected fix; the
-    geoid separation with the altitude. The age of corrections only for a corrected fix too
-    (an autonomous fix's "0.0" would claim corrections one has not got). The reference station
-    type (the station's systems) is nowhere in NMEA 0183: not available."""
+    altitude and the geoid separation together or neither (a receiver that sends no
+    separation gives its MSL altitude, and the field is the ellipsoid's). The age of
+    corrections only for a corrected fix too (an autonomous fix's "0.0" would claim
+    corrections one has not got). The reference station type (the station's systems) is
+    nowhere in NMEA 0183: not available."""
     days, ticks = divmod(round(s.t / TIME_LSB_S), round(SECONDS_PER_DAY / TIME_LSB_S))
+    datum_known = s.alt_m is not None and s.geoid_sep_m is not None
     quality = s.fix_quality
     method = None if quality is None else GNSS_METHOD_OF_FIX[quality]
     gnss_type = GNSS_TYPE_OF_TALKER.get(s.talker or "") if quality in TYPED_BY_TALKER else None
@@ -180,14 +183,14 @@ def gnss_position(s: Solution, _: LoopStatus, sid: int) -> Values:
         "TIME": ticks * TIME_LSB_S,
         "LATITUDE": s.lat_deg,
         "LONGITUDE": s.lon_deg,
-        "ALTITUDE": s.alt_m,
+        "ALTITUDE": s.alt_m if datum_known else None,
         "GNSS_TYPE": gnss_type,
         "METHOD": method,
         "INTEGRITY": GnssIntegrity.NO_CHECKING,
         "NUMBER_OF_SVS": s.num_sats,
         "HDOP": s.hdop,
         "PDOP": None,
-        "GEOIDAL_SEPARATION": None if s.alt_m is None else s.geoid_sep_m,
+        "GEOIDAL_SEPARATION": s.geoid_sep_m if datum_known else None,
         # one reference-station set: the station and age of corrections; without either the
         # set is padding
         "REFERENCE_STATIONS": 0 if age is None and station is None else 1,
