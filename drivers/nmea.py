@@ -57,7 +57,8 @@ from drivers.units import SECONDS_PER_DAY
 
 log = logging.getLogger(__name__)
 
-KNOT_MPS = 1852.0 / 3600.0
+MINUTE_M = 1852.0  # one minute of arc of latitude (the nautical mile), m
+KNOT_MPS = MINUTE_M / 3600.0
 TWO_PI = 2.0 * math.pi
 #: Unknown sentence types counted one by one; any further one is counted under OTHER_TYPES.
 MAX_COUNTED_TYPES = 64
@@ -205,6 +206,16 @@ _LAT = _angle(90.0, "S", "N")  # shared by GGA and RMC: RMC finds GGA's position
 _LON = _angle(180.0, "W", "E")
 
 
+def _position_step(lat: str, lon: str) -> float | None:
+    """The least step of a position printed as ddmm.mmm, dddmm.mmm, m: one unit of the last
+    decimal of the coarser minutes, as a minute of latitude (east's is no larger). Receivers
+    print 4-8 decimals: 18.5 cm to 0.02 mm."""
+    if not lat or not lon:
+        return None
+    decimals = min(len(s) - s.index(".") - 1 if "." in s else 0 for s in (lat, lon))
+    return MINUTE_M * 10.0**-decimals
+
+
 # --- layouts: our field <- pynmea2 field names, converter ---------------------------------------
 
 Converter = Callable[..., Value]
@@ -215,6 +226,7 @@ _LAYOUTS: dict[str, Layout] = {
         ("tod_s", ("timestamp",), _tod),
         ("lat_deg", ("lat", "lat_dir"), _LAT),
         ("lon_deg", ("lon", "lon_dir"), _LON),
+        ("position_step_m", ("lat", "lon"), _position_step),
         ("quality", ("gps_qual",), _quality),
         ("num_sats", ("num_sats",), _count),
         ("hdop", ("horizontal_dil",), _number),
@@ -228,6 +240,7 @@ _LAYOUTS: dict[str, Layout] = {
         ("status", ("status",), _letter),
         ("lat_deg", ("lat", "lat_dir"), _LAT),
         ("lon_deg", ("lon", "lon_dir"), _LON),
+        ("position_step_m", ("lat", "lon"), _position_step),
         ("sog_kn", ("spd_over_grnd",), _number),
         ("cog_rad", ("true_course",), _rad),
         ("date_s", ("datestamp",), _ddmmyy),
@@ -272,7 +285,7 @@ _FIX_QUALITY = {float(q): q for q in FixQuality}  # GGA quality as decoded -> Fi
 _FIX_FIELDS = (
     "t", "t_utc", "quality", "lat_deg", "lon_deg", "alt_m", "num_sats", "hdop", "age_s",
     "sog_mps", "cog_rad", "heading_rad", "sigma_n_m", "sigma_e_m", "sigma_d_m", "mode",
-    "geoid_sep_m", "reference_station_id", "talker",
+    "geoid_sep_m", "reference_station_id", "talker", "position_step_m",
 )  # fmt: skip
 if tuple(f.name for f in fields(GnssFix))[: len(_FIX_FIELDS)] != _FIX_FIELDS:
     raise ImportError(f"GnssFix fields are not {_FIX_FIELDS}...: update NmeaDecoder._assemble")
@@ -845,6 +858,7 @@ class NmeaDecoder:
             sep if valid else None,  # geoid_sep_m (receivers send 0.0 without a fix)
             None if station is None else int(station),
             g["talker"],
+            source["position_step_m"] if valid else None,
         )
 
     def _utc(self, tod: float | None, date_s: float | None) -> float | None:

@@ -123,6 +123,9 @@ class GnssFix:
     # GGA talker id (GP, GL, GA, GB, GN, ...): the systems used; None if the epoch's GGAs
     # have several (one per system)
     talker: str | None = None
+    # the least step of the position as printed (its minutes' last decimal), m: a receiver
+    # printing 4 decimals rounds it to 18.5 cm (drivers.nmea._position_step)
+    position_step_m: float | None = None
     # host time less ``t``: the host clock's steps taken out of the receive time, s
     # (drivers.host_clock; 0 while it has not stepped)
     host_offset_s: float = 0.0
@@ -135,13 +138,20 @@ class GnssFix:
     @property
     def position_sigma_m(self) -> tuple[float, float, float] | None:
         """Position 1-sigma north, east, down: GST when sent, else the quality's typical
-        figure (:data:`DEFAULT_GNSS_SIGMAS`); None for a quality without one."""
+        figure (:data:`DEFAULT_GNSS_SIGMAS`), with the rounding of the position as printed
+        (uniform over its step: step / sqrt(12) north and east); None for a quality without
+        a figure."""
         if self.sigma_n_m is not None and self.sigma_e_m is not None and self.sigma_d_m is not None:
-            return (self.sigma_n_m, self.sigma_e_m, self.sigma_d_m)
-        if int(self.quality) in DEFAULT_GNSS_SIGMAS:
-            h, v, _ = DEFAULT_GNSS_SIGMAS[int(self.quality)]
-            return (h, h, v)
-        return None
+            n, e, d = self.sigma_n_m, self.sigma_e_m, self.sigma_d_m
+        elif int(self.quality) in DEFAULT_GNSS_SIGMAS:
+            n, d, _ = DEFAULT_GNSS_SIGMAS[int(self.quality)]
+            e = n
+        else:
+            return None
+        if self.position_step_m is None:
+            return (n, e, d)
+        rounding = self.position_step_m / math.sqrt(12.0)
+        return (math.hypot(n, rounding), math.hypot(e, rounding), d)
 
     @property
     def horizontal_sigma_m(self) -> float:

@@ -95,6 +95,9 @@ class GnssReceiverConfig:
 
     rate_hz: float = 10.0  # 1, 2, 4, 5, 10 or 20: the epoch must be whole centiseconds
     talker: str = "GN"
+    # decimals of the minutes of latitude and longitude printed: 7 (0.2 mm) as RTK receivers
+    # print them, 4 (18.5 cm) as older ones do
+    position_decimals: int = 7
     vtg: bool = True
     gst: bool = True
     zda: bool = True
@@ -146,6 +149,10 @@ class GnssReceiverConfig:
             raise ValueError(
                 f"slow_rate_hz={self.slow_rate_hz} with rate_hz={self.rate_hz}: expected a "
                 "whole fraction of rate_hz (1 with 10 Hz epochs)"
+            )
+        if not 1 <= self.position_decimals <= 9:
+            raise ValueError(
+                f"position_decimals={self.position_decimals}: expected 1-9 decimals of a minute"
             )
         if len(self.talker) != 2 or not self.talker.isalpha() or not self.talker.isupper():
             raise ValueError(f"talker={self.talker!r}: expected two capital letters, e.g. 'GN'")
@@ -332,8 +339,8 @@ def _format_epochs(
         int(d): dt.date(1970, 1, 1) + dt.timedelta(days=int(d)) for d in np.unique(t_cs // day_cs)
     }
     dates = [days[d] for d in (t_cs // day_cs).tolist()]
-    lat_txt = _ddmm(np.nan_to_num(lla[:, 0]), 2)
-    lon_txt = _ddmm(np.nan_to_num(lla[:, 1]), 3)
+    lat_txt = _ddmm(np.nan_to_num(lla[:, 0]), 2, cfg.position_decimals)
+    lon_txt = _ddmm(np.nan_to_num(lla[:, 1]), 3, cfg.position_decimals)
     alt_msl = (lla[:, 2] - (cfg.geoid_separation_m or 0.0)).tolist()
     sog_kn = (sog / KNOT_MPS).tolist()
     cog_deg = np.degrees(cog).tolist()
@@ -396,13 +403,15 @@ def _format_epochs(
     return bodies, line_epoch
 
 
-def _ddmm(deg: Array, deg_digits: int) -> list[tuple[str, bool]]:
-    """Angle -> (``d..dmm.mmmmmmm`` text, non-negative); 1e-7 minute is 0.2 mm."""
-    units = np.rint(np.abs(deg) * 60e7).astype(np.int64)
-    whole, rem = np.divmod(units, 60 * 10**7)
-    minutes, frac = np.divmod(rem, 10**7)
+def _ddmm(deg: Array, deg_digits: int, decimals: int) -> list[tuple[str, bool]]:
+    """Angle -> (``d..dmm.mmmmmmm`` text with ``decimals`` of the minutes, non-negative);
+    1e-7 minute is 0.2 mm."""
+    scale = 10**decimals
+    units = np.rint(np.abs(deg) * 60 * scale).astype(np.int64)
+    whole, rem = np.divmod(units, 60 * scale)
+    minutes, frac = np.divmod(rem, scale)
     return [
-        (f"{w:0{deg_digits}d}{m:02d}.{f:07d}", pos)
+        (f"{w:0{deg_digits}d}{m:02d}.{f:0{decimals}d}", pos)
         for w, m, f, pos in zip(
             whole.tolist(), minutes.tolist(), frac.tolist(), (deg >= 0).tolist(), strict=True
         )

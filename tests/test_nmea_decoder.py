@@ -78,6 +78,7 @@ def test_full_epoch_every_field() -> None:
             geoid_sep_m=46.9,
             reference_station_id=31,
             talker="GN",
+            position_step_m=1852.0 * 10.0**-4,  # 4 decimals of a minute
         )
     ]
     c = decoder.counters
@@ -91,6 +92,31 @@ def test_any_talker(talker: str) -> None:
     assert [(f.quality, f.t, f.t_utc, f.talker) for f in fixes] == [
         (FixQuality.RTK_FIXED, T0, T0, talker)
     ]
+
+
+@pytest.mark.parametrize(
+    ("lat", "lon", "step_m"),
+    [
+        ("4807.0380", "01131.0000", 0.1852),  # 4 decimals of a minute: older receivers
+        ("4807.03801", "01131.00002", 0.01852),  # 5: u-blox's default
+        ("4807.0380123", "01131.0000", 0.1852),  # the coarser of the two
+        ("4807.03801234", "01131.00000001", 1.852e-5),  # 8: RTK receivers
+        ("4807", "01131", 1852.0),  # whole minutes
+    ],
+)
+def test_the_position_step_and_its_rounding_in_the_sigma(lat: str, lon: str, step_m: float) -> None:
+    """A position printed with 4 decimals of a minute is rounded to 18.5 cm: an RTK fix so is
+    known to 5.3 cm (uniform over the step, step / sqrt(12)), whatever GST says; the EKF
+    weighing such fixes by GST's 1.5 cm rejected most as glitches (tests/
+    test_receiver_position_decimals.py)."""
+    gga = s(f"GGA,123519.00,{lat},N,{lon},E,4,12,0.9,545.4,M,46.9,M,1.2,0031")
+    gst = s("GST,123519.00,0.5,0.02,0.01,30.0,0.015,0.012,0.030")
+    (fix,), _ = decode(stream(gga, gst))
+    assert fix.position_step_m == pytest.approx(step_m)
+    rounding = step_m / math.sqrt(12.0)
+    assert fix.position_sigma_m == pytest.approx(
+        (math.hypot(0.015, rounding), math.hypot(0.012, rounding), 0.030)
+    )
 
 
 @pytest.mark.parametrize(

@@ -82,6 +82,7 @@ def test_trimble_rtk_fixed_position() -> None:
         geoid_sep_m=-31.442,
         reference_station_id=2,
         talker="GN",
+        position_step_m=1852.0 * 10.0**-8,  # 8 decimals of a minute: 0.02 mm
     )
     assert decoder.counters.by_type == {"GGA": 122, "RMC": 122}
 
