@@ -14,40 +14,25 @@ package.
 
 from __future__ import annotations
 
-import dataclasses
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 from gateway.config.gateway_config import Engine
-from sim_bus.scenarios import SCENARIOS, SimRun, generate
-from tests.n2k_check import (
-    decode_log,
-    heading_beyond_navigating,
-    position_beyond_mode,
-    position_errors_m,
-    tilt_beyond_stated,
-)
-from tests.sim_replay import replay_run, second_half_rms_deg
-
-
-def _run(tmp_path_factory: pytest.TempPathFactory, geoid_separation_m: float | None) -> SimRun:
-    base = SCENARIOS["short"]
-    gnss = dataclasses.replace(base.gnss, geoid_separation_m=geoid_separation_m)
-    name = f"short-geoid-{geoid_separation_m}"
-    scenario = dataclasses.replace(base, name=name, gnss=gnss)
-    return generate(scenario, tmp_path_factory.mktemp(name), seed=3)
+from sim_bus.scenarios import SimRun
+from tests.n2k_check import decode_log, position_errors_m
+from tests.sim_replay import beyond_stated, replay_run, second_half_rms_deg, short_with_receiver
 
 
 @pytest.fixture(scope="module")
 def without(tmp_path_factory: pytest.TempPathFactory) -> SimRun:
-    return _run(tmp_path_factory, None)
+    return short_with_receiver(tmp_path_factory.mktemp("geoid"), 3, geoid_separation_m=None)
 
 
 @pytest.fixture(scope="module")
 def with_separation(tmp_path_factory: pytest.TempPathFactory) -> SimRun:
-    return _run(tmp_path_factory, 47.0)
+    return short_with_receiver(tmp_path_factory.mktemp("geoid47"), 3, geoid_separation_m=47.0)
 
 
 def test_the_receiver_sends_the_separation_blank(without: SimRun) -> None:
@@ -77,6 +62,4 @@ def test_both_engines_navigate_without_the_geoid_separation(
     with_alt = [m for m in decode_log(out_with) if m.id == "gnssPositionData"]
     last = with_alt[-1].fields  # the same receiver with a separation
     assert last["altitude"] is not None and last["geoidalSeparation"] is not None
-    assert tilt_beyond_stated(out, truth)[1] == []
-    assert heading_beyond_navigating(out, truth)[1] == []
-    assert position_beyond_mode(out, truth)[1] == []
+    assert beyond_stated(out, truth)[1] == []
