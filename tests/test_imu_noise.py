@@ -13,28 +13,55 @@ from drivers.units import DEG_TO_RAD
 from gateway.estimation.ekf.ekf_config import EkfConfig
 from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.imu_noise import (
-    BLOCK_SAMPLES,
     EDGE_BLOCKS,
     MIN_BLOCK_PAIRS,
     ImuNoiseMeter,
+    block_samples,
 )
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
 from tests.kinematics import Motion, Segment, gnss_stream, imu_stream, motion_time, run
 
 DT_S = 1.0 / 204.8
+BLOCK_SAMPLES = block_samples(DT_S)
 
 
-def _feed(meter: ImuNoiseMeter, n: int, sig_g: float, sig_a: float, vib_a: float) -> None:
+def _feed(
+    meter: ImuNoiseMeter, n: int, sig_g: float, sig_a: float, vib_a: float, dt_s: float = DT_S
+) -> None:
     """n samples at rest: white noise plus a 28 Hz engine vibration of amplitude vib_a on
     every accelerometer axis (and vib_a / 3 deg/s on the gyro's)."""
     rng = np.random.default_rng(5)
-    t = np.arange(n) * DT_S
+    t = np.arange(n) * dt_s
     vib = np.sin(2.0 * math.pi * 28.0 * t)
     for k in range(n):
         w = sig_g * rng.standard_normal(3) + vib_a / 3.0 * DEG_TO_RAD * vib[k] + 0.002
         f = sig_a * rng.standard_normal(3) + vib_a * vib[k] + (0.1, -0.2, -9.8)
-        meter.add((float(w[0]), float(w[1]), float(w[2])), (float(f[0]), float(f[1]), float(f[2])))
+        meter.add(
+            (float(w[0]), float(w[1]), float(w[2])), (float(f[0]), float(f[1]), float(f[2])), dt_s
+        )
+
+
+@pytest.mark.parametrize("rate_hz", [102.4, 409.6, 819.2])
+def test_the_excess_over_the_datasheet_is_no_larger_at_another_output_rate(rate_hz: float) -> None:
+    """The same unit at another DEC: white noise of one density (0.45 m/s^2 a sample at
+    204.8 Hz, sqrt(rate) times that a sample) and the same 28 Hz vibration of 1.8 m/s^2. Its
+    excess over the datasheet's noise is at most the 204.8 Hz one's (1.43) + 10 % and still
+    counts the vibration: blocks of 0.1 s whatever the rate (1.55, 1.11, 1.16 at 102.4,
+    409.6, 819.2 Hz; a single tone's share moves with the block's exact length, 0.098 or
+    0.100 s). With blocks of 20 samples: 1.80, 2.48, 2.98, and both engines stated 1.05 deg
+    of tilt where 0.59 was right, DEGRADED until the first turn (`short` seed 3, DEC 0 or 1)."""
+    sig_a = 0.45
+
+    def excess(dt_s: float) -> float:
+        meter = ImuNoiseMeter()
+        white = sig_a * math.sqrt(DT_S / dt_s)
+        _feed(meter, round(20.0 / dt_s), 0.5 * DEG_TO_RAD, white, 1.8, dt_s)
+        return meter.excess(1.0, white)[1]
+
+    at_204 = excess(DT_S)
+    assert 1.3 < at_204 < 1.6
+    assert 1.05 < excess(1.0 / rate_hz) < 1.1 * at_204
 
 
 def test_the_white_noise_is_measured() -> None:
@@ -85,7 +112,9 @@ def test_a_drive_off_before_the_rest_test_sees_it_is_left_out() -> None:
         off, squat = k >= n_rest, n_rest <= k < n_rest + int(0.25 / DT_S)
         w = 0.5 * DEG_TO_RAD * rng.standard_normal(3) + (0.0, 2.0 * DEG_TO_RAD * squat, 0.0)
         f = 0.2 * rng.standard_normal(3) + (0.3 if off else 0.0, 0.0, -9.8)
-        meter.add((float(w[0]), float(w[1]), float(w[2])), (float(f[0]), float(f[1]), float(f[2])))
+        meter.add(
+            (float(w[0]), float(w[1]), float(w[2])), (float(f[0]), float(f[1]), float(f[2])), DT_S
+        )
     meter.restart()
     measured = meter.sigma_per_sample()
     assert measured is not None

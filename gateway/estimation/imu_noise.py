@@ -19,8 +19,11 @@ from dataclasses import dataclass, field
 
 from drivers.samples import Float3
 
-#: Samples a block (0.1 s at 204.8 Hz: a GNSS epoch at 10 Hz).
-BLOCK_SAMPLES = 20
+#: A block's length, s: a GNSS epoch at 10 Hz (20 samples at 204.8 Hz, 82 at 819.2). Counted
+#: as 20 samples, an 819.2 Hz unit's block held 0.7 cycle of a 28 Hz engine vibration, taken
+#: for noise: both engines stated 1.05 deg of tilt where 0.59 was right (DEGRADED until the
+#: first turn on `short` seed 3 at DEC 0 and 1).
+BLOCK_S = 0.1
 #: Block differences before the measurement is used: 2 s at 204.8 Hz, a sigma within ~9 %
 #: (60 differences over the three axes; :meth:`ImuNoiseMeter.excess` takes an excess only
 #: beyond three times that scatter). 3 s was longer than a short first rest allows: a cold
@@ -46,14 +49,14 @@ class ImuNoiseMeter:
     _sums: list[float] = field(default_factory=lambda: [0.0] * 6)
     _n: int = 0
     _prev: tuple[float, ...] | None = None  # the last block's means, w then f
-    _sq_g: float = 0.0  # sums of squared differences of block means, all three axes
+    _sq_g: float = 0.0  # sums of n d^2 / 2 over differences of block means, all three axes
     _sq_a: float = 0.0
     _blocks: int = 0  # blocks of this rest so far
     _held: deque[tuple[float, float]] = field(default_factory=deque)  # the newest differences
     pairs: int = 0
 
-    def add(self, w_rps: Float3, f_mps2: Float3) -> None:
-        """One sample at rest (body rate rad/s, specific force m/s^2)."""
+    def add(self, w_rps: Float3, f_mps2: Float3, dt_s: float) -> None:
+        """One sample at rest (body rate rad/s, specific force m/s^2, sample period s)."""
         s = self._sums
         s[0] += w_rps[0]
         s[1] += w_rps[1]
@@ -62,16 +65,20 @@ class ImuNoiseMeter:
         s[4] += f_mps2[1]
         s[5] += f_mps2[2]
         self._n += 1
-        if self._n < BLOCK_SAMPLES:
+        n = self._n
+        if n < block_samples(dt_s):
             return
-        means = tuple(x / BLOCK_SAMPLES for x in s)
+        means = tuple(x / n for x in s)
         prev = self._prev
         self._blocks += 1
         if prev is not None and self._blocks > EDGE_BLOCKS:
             d = [a - b for a, b in zip(means, prev, strict=True)]
             held = self._held
-            held.append(
-                (d[0] * d[0] + d[1] * d[1] + d[2] * d[2], d[3] * d[3] + d[4] * d[4] + d[5] * d[5])
+            held.append(  # n d^2 / 2: a sample's variance, whatever the rate
+                (
+                    0.5 * n * (d[0] * d[0] + d[1] * d[1] + d[2] * d[2]),
+                    0.5 * n * (d[3] * d[3] + d[4] * d[4] + d[5] * d[5]),
+                )
             )
             if len(held) > EDGE_BLOCKS:
                 sq_g, sq_a = held.popleft()
@@ -112,5 +119,10 @@ class ImuNoiseMeter:
         before :data:`MIN_BLOCK_PAIRS` block differences."""
         if self.pairs < MIN_BLOCK_PAIRS:
             return None
-        k = BLOCK_SAMPLES / (2.0 * 3.0 * self.pairs)
+        k = 1.0 / (3.0 * self.pairs)
         return math.sqrt(self._sq_g * k), math.sqrt(self._sq_a * k)
+
+
+def block_samples(dt_s: float) -> int:
+    """Samples in a block (:data:`BLOCK_S`) at sample period ``dt_s``."""
+    return max(1, round(BLOCK_S / dt_s))

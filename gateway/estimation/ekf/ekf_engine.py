@@ -405,7 +405,7 @@ class EkfEngine:
             self._still_since_s = t
         still_s = 0.0 if self._still_since_s is None else t - self._still_since_s
         if quiet and still and still_s >= ALIGN_SETTLE_S:
-            self._noise.add(w, f)
+            self._noise.add(w, f, dt)
         else:
             self._noise.restart()
         return quiet, still_s

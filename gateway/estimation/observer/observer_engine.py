@@ -353,7 +353,7 @@ class ObserverEngine:
         self._t_s = t
         if self._stationary:  # the sample period is needed only where the noise is taken
             self._imu_dt_s = sample.dt
-            self._noise.add(w, f)
+            self._noise.add(w, f, sample.dt)
         obs = self._observer
         if obs is None:
             self._imu_dt_s = sample.dt
