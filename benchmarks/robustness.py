@@ -102,6 +102,8 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
         {"imu": {"imu_mounting_rpy_deg": [180.0, 0.0, 90.0]}},
     ),
     "imu-102hz": ("IMU DEC = 3: 102.4 Hz", {"imu": {"dec": 3}}),
+    "imu-51hz": ("IMU DEC = 4: 51.2 Hz", {"imu": {"dec": 4}}),
+    "imu-819hz": ("IMU DEC = 0: 819.2 Hz", {"imu": {"dec": 0}}),
     "long-stop": (
         "a 5-minute stop after the first pass, engine running",
         {"vehicle": {"mid_stop_pass": 1, "mid_stop_s": 300.0}},

@@ -65,11 +65,17 @@ SUPPLY_LOW_V, SUPPLY_HIGH_V = 4.75, 5.25
 
 @dataclass(frozen=True)
 class EngineVibration:
-    """Engine vibration seen by the IMU, body frame: a sinusoid plus broadband noise."""
+    """Engine vibration seen by the IMU, body frame: a sinusoid plus broadband noise.
+
+    Amplitudes and the broadband 1-sigma are as output at DEC 2 (204.8 Hz, the default).
+    At another DEC the decimation filter averages 2^DEC internal samples: the sinusoid
+    passes with that mean's gain at its frequency, the broadband noise with 1 / sqrt(2^DEC)
+    (its density kept), both relative to DEC 2's (:func:`vibration_gains`).
+    """
 
     frequency_hz: float = 28.0
     accel_amplitude_mps2: tuple[float, float, float] = (0.3, 0.2, 0.6)
-    accel_broadband_mps2: float = 0.15  # 1-sigma per sample
+    accel_broadband_mps2: float = 0.15  # 1-sigma per sample (at DEC 2)
     gyro_amplitude_rps: tuple[float, float, float] = (
         0.2 * DEG_TO_RAD,
         0.2 * DEG_TO_RAD,
@@ -167,6 +173,20 @@ def _gauss_markov(
     return np.asarray(lfilter([1.0], [1.0, -a], w, axis=0))
 
 
+def vibration_gains(vib: EngineVibration, dec: int) -> tuple[float, float]:
+    """The decimation filter's gain at ``dec`` on ``vib``'s sinusoid and on its broadband
+    noise, relative to DEC 2's: the mean of m = 2^DEC internal samples at 819.2 Hz passes a
+    sinusoid of frequency f with |sin(pi f m / 819.2) / (m sin(pi f / 819.2))| and white noise
+    with 1 / sqrt(m). At 28 Hz: 1.03 at DEC 0, 0.59 at DEC 4 (the 0.97 of DEC 2 as 1)."""
+
+    def sine_gain(m: int) -> float:
+        x = np.pi * vib.frequency_hz / ADIS_CLOCK_HZ
+        return abs(float(np.sin(m * x) / (m * np.sin(x))))
+
+    m = 2**dec
+    return sine_gain(m) / sine_gain(4), float(np.sqrt(4.0 / m))
+
+
 def _vibration(rng: np.random.Generator, t: Array, amplitude: Array, broadband: float) -> Array:
     phase = rng.uniform(0.0, 2.0 * np.pi, 3)
     return amplitude * np.sin(2.0 * np.pi * t[:, None] + phase) + broadband * rng.standard_normal(
@@ -253,9 +273,15 @@ def simulate(
     vib = config.vibration
     if vib is not None:
         tv = (t - t[0]) * vib.frequency_hz
-        w_b = w_b + _vibration(rng, tv, np.asarray(vib.gyro_amplitude_rps), vib.gyro_broadband_rps)
+        sine, broadband = vibration_gains(vib, config.dec)
+        w_b = w_b + _vibration(
+            rng, tv, sine * np.asarray(vib.gyro_amplitude_rps), broadband * vib.gyro_broadband_rps
+        )
         f_b = f_b + _vibration(
-            rng, tv, np.asarray(vib.accel_amplitude_mps2), vib.accel_broadband_mps2
+            rng,
+            tv,
+            sine * np.asarray(vib.accel_amplitude_mps2),
+            broadband * vib.accel_broadband_mps2,
         )
     sqrt_dt = np.sqrt(dt)
     w_imu = (w_b @ c_b_imu) + b_g_imu  # row-wise C^T w

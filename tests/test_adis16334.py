@@ -17,6 +17,7 @@ from sim_bus.adis16334 import (
     GYRO_LSB_RPS,
     ND_BIT,
     Adis16334Config,
+    EngineVibration,
     counts_from_words,
     simulate,
 )
@@ -88,6 +89,39 @@ def test_white_noise_matches_the_random_walk_figures() -> None:
     # Allan deviation of white rate noise at tau = 1 s equals the ARW in rad/sqrt(s)
     m = round(1.0 / dt)
     np.testing.assert_allclose(allan_dev(e_w, m), cfg.gyro_arw_rad_per_sqrt_s, rtol=0.2)
+
+
+@pytest.mark.parametrize("dec", [0, 4])
+def test_engine_vibration_passes_the_decimation_filter_as_at_the_default_rate(dec: int) -> None:
+    """The engine's vibration is given as output at DEC 2; the decimation filter averages
+    2^DEC internal samples. At DEC 0 and 4 its 28 Hz tone has the amplitude of the mean of
+    2^DEC internal samples (1.03 and 0.59 times DEC 2's) and its broadband noise the same
+    density (1-sigma per sample sqrt(DEC 2's period / the period) times DEC 2's: 2 and 0.5).
+    Per sample at every rate, it was four times the density at 51.2 Hz, a quarter at 819.2."""
+    tone = EngineVibration(accel_amplitude_mps2=(0.0, 0.0, 0.6), accel_broadband_mps2=0.0)
+    broadband = EngineVibration(accel_amplitude_mps2=(0.0, 0.0, 0.0), accel_broadband_mps2=0.3)
+
+    def amplitude_and_density(d: int) -> tuple[float, float]:
+        t, w, f = truth(20.0, dec=d)
+        z = counts_from_words(simulate(t, w, f, replace(QUIET, dec=d, vibration=tone)).accel_words)
+        y = z[:, 2] * ACCEL_LSB_MPS2 - f[:, 2]
+        arg = 2.0 * np.pi * 28.0 * (t - t[0])
+        basis = np.column_stack([np.sin(arg), np.cos(arg), np.ones_like(arg)])
+        sin_cos = np.linalg.lstsq(basis, y, rcond=None)[0][:2]
+        x = counts_from_words(
+            simulate(t, w, f, replace(QUIET, dec=d, vibration=broadband, seed=9)).accel_words
+        )
+        noise = x[:, 0] * ACCEL_LSB_MPS2 - f[:, 0]
+        return float(np.hypot(*sin_cos)), float(noise.std() * np.sqrt(sample_period_s(d)))
+
+    def mean_gain(d: int) -> float:  # of 2^d internal samples at 819.2 Hz, on 28 Hz
+        return float(abs(np.exp(2j * np.pi * 28.0 * np.arange(2**d) / 819.2).mean()))
+
+    amp_2, density_2 = amplitude_and_density(2)
+    amp, density = amplitude_and_density(dec)
+    assert amp_2 == pytest.approx(0.6, rel=0.01)
+    assert amp / amp_2 == pytest.approx(mean_gain(dec) / mean_gain(2), rel=0.02)
+    assert density == pytest.approx(density_2, rel=0.05)
 
 
 def test_in_run_bias_allan_floor_equals_the_bias_stability() -> None:

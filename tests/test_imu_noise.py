@@ -9,14 +9,17 @@ import math
 import numpy as np
 import pytest
 
+from drivers.imu_can import sample_period_s
 from drivers.units import DEG_TO_RAD
-from gateway.estimation.ekf.ekf_config import EkfConfig
+from gateway.estimation.ekf.ekf_config import EkfConfig, EkfTuning
 from gateway.estimation.ekf.ekf_engine import EkfEngine
 from gateway.estimation.imu_noise import (
     EDGE_BLOCKS,
     MIN_BLOCK_PAIRS,
+    VIBRATION_SAMPLE_PERIOD_S,
     ImuNoiseMeter,
     block_samples,
+    vibration_per_sample,
 )
 from gateway.estimation.observer.observer_config import ObserverConfig
 from gateway.estimation.observer.observer_engine import ObserverEngine
@@ -62,6 +65,25 @@ def test_the_excess_over_the_datasheet_is_no_larger_at_another_output_rate(rate_
     at_204 = excess(DT_S)
     assert 1.3 < at_204 < 1.6
     assert 1.05 < excess(1.0 / rate_hz) < 1.1 * at_204
+
+
+def test_the_configured_vibration_keeps_its_density_at_every_output_rate() -> None:
+    """``vibration_*`` are 1-sigma per sample at 204.8 Hz: the decimation filter keeps a
+    broadband noise's density, so the EKF's process noise is the same at DEC 0-4 and the
+    observer's per-sample figure scales by sqrt(period ratio). Taken per sample at every
+    rate, the filters assumed a quarter of the density at 819.2 Hz: on `short` seed 3 at DEC 0
+    the observer measured its vibration as beyond the config's and was DEGRADED in the first
+    pass (tests/test_imu_output_rates.py)."""
+    assert sample_period_s(2) == VIBRATION_SAMPLE_PERIOD_S
+    assert vibration_per_sample(0.2, sample_period_s(0)) == pytest.approx(0.4, rel=1e-12)
+    assert vibration_per_sample(0.2, sample_period_s(4)) == pytest.approx(0.1, rel=1e-12)
+    cfg = EkfConfig()
+    q = [EkfTuning.from_config(cfg, sample_period_s(dec)) for dec in range(5)]
+    vrw = cfg.accel_vrw_mps_per_sqrt_h / 60.0
+    expected = vrw**2 + cfg.vibration_accel_mps2**2 * VIBRATION_SAMPLE_PERIOD_S
+    for tuning in q:
+        assert tuning.q_accel_m2_per_s3 == pytest.approx(expected, rel=1e-12)
+        assert tuning.q_gyro_rad2_per_s == pytest.approx(q[2].q_gyro_rad2_per_s, rel=1e-12)
 
 
 def test_the_white_noise_is_measured() -> None:

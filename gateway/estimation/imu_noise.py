@@ -36,6 +36,18 @@ MIN_BLOCK_PAIRS = 20
 #: which a rest test on the GNSS speed sees only 0.3-0.6 s after it began (its acceleration
 #: in one block difference counts as much as a minute of vibration at rest).
 EDGE_BLOCKS = 10
+#: The sample period at which the configs' ``vibration_*`` are 1-sigma per sample: DEC 2,
+#: 204.8 Hz (SPEC 1's default).
+VIBRATION_SAMPLE_PERIOD_S = 4.0 / 819.2
+
+
+def vibration_per_sample(sigma_at_default: float, dt_s: float) -> float:
+    """Broadband vibration's 1-sigma per sample at sample period ``dt_s``, from its 1-sigma
+    per sample at :data:`VIBRATION_SAMPLE_PERIOD_S`: the decimation filter averages 2^DEC
+    internal samples, which keeps a broadband noise's density, so its 1-sigma per sample
+    doubles at DEC 0 and halves at DEC 4. Taken per sample at every rate, the filters
+    assumed a quarter of the vibration's density at 819.2 Hz and four times it at 51.2 Hz."""
+    return sigma_at_default * math.sqrt(VIBRATION_SAMPLE_PERIOD_S / dt_s)
 
 
 @dataclass

@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 from drivers.units import DEG_TO_RAD, MG_MPS2, SQRT_SECONDS_PER_HOUR
 from gateway.estimation.epoch_clock import RECEIVE_EPOCH_SIGMA_S, EpochTime
+from gateway.estimation.imu_noise import vibration_per_sample
 from gateway.estimation.observer.observer_config import Vec3Tuple
 
 #: Allan-deviation floor of a first-order Gauss-Markov process / its sigma (at tau = 1.89 T):
@@ -44,8 +45,9 @@ class EkfConfig:
     # 0.11 m/s^2; the observer's sigma model takes the same). P0 keeps the figure above.
     accel_bias_sigma_covered_mps2: float = 0.1
     # Engine vibration seen by the IMU (installation, not datasheet): broadband 1-sigma per
-    # sample, added to the white noise densities as sigma^2 dt; the least the filter assumes
-    # (the noise measured at rest replaces it where larger: gateway/estimation/imu_noise.py)
+    # sample at 204.8 Hz (its density kept at other rates), added to the white noise
+    # densities as sigma^2 dt; the least the filter assumes (the noise measured at rest
+    # replaces it where larger: gateway/estimation/imu_noise.py)
     vibration_gyro_dps: float = 0.05
     vibration_accel_mps2: float = 0.2
 
@@ -141,9 +143,11 @@ class EkfTuning:
         sig_g = cfg.gyro_bias_stability_dps * DEG_TO_RAD / GM_ALLAN_FLOOR
         sig_a = cfg.accel_bias_stability_mg * MG_MPS2 / GM_ALLAN_FLOOR
         tau = cfg.bias_correlation_time_s
+        vib_g = vibration_per_sample(cfg.vibration_gyro_dps * DEG_TO_RAD, imu_dt_s)
+        vib_a = vibration_per_sample(cfg.vibration_accel_mps2, imu_dt_s)
         return cls(
-            q_gyro_rad2_per_s=arw**2 + (cfg.vibration_gyro_dps * DEG_TO_RAD) ** 2 * imu_dt_s,
-            q_accel_m2_per_s3=vrw**2 + cfg.vibration_accel_mps2**2 * imu_dt_s,
+            q_gyro_rad2_per_s=arw**2 + vib_g**2 * imu_dt_s,
+            q_accel_m2_per_s3=vrw**2 + vib_a**2 * imu_dt_s,
             q_bias_g_rad2_per_s3=2.0 * sig_g**2 / tau,
             q_bias_a_m2_per_s5=2.0 * sig_a**2 / tau,
             sigma_bias_g0_rps=cfg.gyro_bias_sigma0_dps * DEG_TO_RAD,

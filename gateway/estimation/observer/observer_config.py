@@ -71,9 +71,10 @@ class ObserverConfig:
     # temperature's rate adds to the wander (gateway/estimation/temperature.py)
     gyro_bias_tempco_dps_per_c: float = 0.01
     accel_bias_tempco_mg_per_c: float = 0.1
-    # Engine vibration seen by the IMU (installation): broadband 1-sigma per sample, as
-    # [ekf]'s; the stated accuracy holds for it, and grows with the noise measured at rest
-    # where that is beyond it (gateway/estimation/imu_noise.py)
+    # Engine vibration seen by the IMU (installation): broadband 1-sigma per sample at
+    # 204.8 Hz (its density kept at other rates), as [ekf]'s; the stated accuracy holds for
+    # it, and grows with the noise measured at rest where that is beyond it
+    # (gateway/estimation/imu_noise.py)
     vibration_gyro_dps: float = 0.05
     vibration_accel_mps2: float = 0.2
 

@@ -72,7 +72,7 @@ from gateway.estimation.gnss_error import (
 from gateway.estimation.gnss_track import GnssTrack
 from gateway.estimation.hdt_doubt import HdtDoubt, hdt_doubt_text
 from gateway.estimation.heading_hint import HeadingHint
-from gateway.estimation.imu_noise import ImuNoiseMeter
+from gateway.estimation.imu_noise import ImuNoiseMeter, vibration_per_sample
 from gateway.estimation.levelling import ALIGN_LAG_S, WindowMotion
 from gateway.estimation.lever_arm import (
     along_body_x,
@@ -1019,10 +1019,13 @@ class ObserverEngine:
         cfg, dt = self.cfg, self._imu_dt_s
         arw = cfg.gyro_arw_deg_per_sqrt_h * DEG_TO_RAD / SQRT_SECONDS_PER_HOUR
         vrw = cfg.accel_vrw_mps_per_sqrt_h / SQRT_SECONDS_PER_HOUR
-        sigma_a = math.hypot(vrw / math.sqrt(dt), cfg.vibration_accel_mps2)  # a sample
-        r_g, r_a = self._noise.excess(
-            math.hypot(arw / math.sqrt(dt), cfg.vibration_gyro_dps * DEG_TO_RAD), sigma_a
+        sigma_a = math.hypot(  # a sample
+            vrw / math.sqrt(dt), vibration_per_sample(cfg.vibration_accel_mps2, dt)
         )
+        sigma_g = math.hypot(
+            arw / math.sqrt(dt), vibration_per_sample(cfg.vibration_gyro_dps * DEG_TO_RAD, dt)
+        )
+        r_g, r_a = self._noise.excess(sigma_g, sigma_a)
         if abs(max(r_g, r_a) / self._noise_told - 1.0) > NOISE_TOLD_CHANGE:
             self._noise_told = max(r_g, r_a)
             log.info(
