@@ -113,6 +113,10 @@ class GnssReceiverConfig:
     # on at its velocity, course and all (u-blox's drLimit); 0 sends them without a fix
     dead_reckoning_limit_s: float = 0.0
     noise: Mapping[FixQuality, NoiseModel] = field(default_factory=lambda: dict(DEFAULT_NOISE))
+    # the velocity's 1-sigma per horizontal axis at every fix quality (Doppler's noise is the
+    # same with RTK or without; u-blox F9P's datasheet has 0.05 m/s); None: each quality's
+    # sigma_vel_mps from ``noise``
+    velocity_sigma_mps: float | None = None
     heading_sigma_rad: float = math.radians(0.15)
     latency_s: float = 0.040
     latency_jitter_s: float = 0.003
@@ -160,6 +164,11 @@ class GnssReceiverConfig:
             raise ValueError(
                 f"dead_reckoning_limit_s={self.dead_reckoning_limit_s}: expected a finite "
                 "time, s, 0 or more (0: no dead reckoning)"
+            )
+        if self.velocity_sigma_mps is not None and not 0.0 <= self.velocity_sigma_mps < math.inf:
+            raise ValueError(
+                f"velocity_sigma_mps={self.velocity_sigma_mps}: expected a finite 1-sigma, "
+                "m/s, 0 or more (or none: the noise table's)"
             )
         for interval in self.fix_schedule:
             quality = FixQuality(interval[2])
@@ -250,7 +259,9 @@ def simulate_receiver(truth: Truth, config: GnssReceiverConfig | None = None) ->
         sel = quality == q
         sigma = np.array([model.sigma_h_m, model.sigma_h_m, model.sigma_v_m])
         pos_err[sel] = gauss_markov(rng, n, 1.0 / cfg.rate_hz, model.tau_s, sigma)[sel]
-        vel_sigma[sel] = model.sigma_vel_mps
+        vel_sigma[sel] = (
+            model.sigma_vel_mps if cfg.velocity_sigma_mps is None else cfg.velocity_sigma_mps
+        )
         sigma_h[sel], sigma_v[sel] = model.sigma_h_m, model.sigma_v_m
 
     pos_ned = pos_ned + pos_err

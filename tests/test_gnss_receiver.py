@@ -134,6 +134,23 @@ def test_sog_and_cog_follow_the_velocity_and_reversing_keeps_the_course() -> Non
     assert 0.05 < np.std(headings) < 0.3
 
 
+def test_the_velocity_noise_can_be_set_for_every_fix_quality() -> None:
+    """``velocity_sigma_mps``: Doppler's noise, the same RTK float or fixed (the noise table
+    has 2 and 3 cm/s); refused below zero."""
+    schedule = (FixInterval(0.0, 30.0, FixQuality.RTK_FLOAT),)
+    truth = straight_truth(60.0, (0.0, 2.0))
+    for sigma, lo, hi in ((0.05, 0.042, 0.058), (None, 0.015, 0.037)):
+        cfg = GnssReceiverConfig(velocity_sigma_mps=sigma, fix_schedule=schedule)
+        speeds = [
+            rmc.spd_over_grnd * KNOT_MPS for _, rmc in parsed(simulate_receiver(truth, cfg), "RMC")
+        ]
+        half = len(speeds) // 2
+        for part in (speeds[5:half], speeds[half:]):  # float, then fixed
+            assert lo < np.std(part) < hi, (sigma, np.std(part))
+    with pytest.raises(ValueError, match="velocity_sigma_mps"):
+        GnssReceiverConfig(velocity_sigma_mps=-0.01)
+
+
 def test_course_on_a_circle_is_tangent() -> None:
     truth = circle_truth(30.0)
     out = simulate_receiver(truth)
