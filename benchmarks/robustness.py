@@ -96,6 +96,10 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
         "as dead reckoning (a u-blox without sensors)",
         {"gnss": {"dead_reckoning_limit_s": 20.0}},
     ),
+    "vel-5cm": (
+        "receiver velocity 5 cm/s 1-sigma (u-blox F9P's datasheet), 2 cm/s configured",
+        {"gnss": {"velocity_sigma_mps": 0.05}},
+    ),
     "hdt": ("dual-antenna heading (HDT)", {"gnss": {"hdt": True}}),
     "imu-mounted-rotated": (
         "IMU upside down and turned 90 deg (config gives the mounting)",

@@ -121,7 +121,12 @@ from gateway.estimation.epoch_clock import (
     late_epoch_text,
 )
 from gateway.estimation.geodesy import LocalFrame
-from gateway.estimation.gnss_error import fix_position_sigma_m, split_fix_variance
+from gateway.estimation.gnss_error import (
+    VELOCITY_PAIR_MAX_S,
+    VelocityNoise,
+    fix_position_sigma_m,
+    split_fix_variance,
+)
 from gateway.estimation.gnss_track import DRIFT_WINDOW_S, GnssTrack
 from gateway.estimation.hdt_doubt import HdtDoubt, hdt_doubt_text
 from gateway.estimation.heading_hint import HeadingHint
@@ -295,6 +300,9 @@ class EkfEngine:
         self._t_levelled_s = 0.0  # end of the last window that set roll/pitch
         self._rest_bias_s = 0.0  # rest duration behind the gyro bias estimate, 0 if none
         self._win_motion = WindowMotion(self.cfg.gnss_vel_sigma_mps, self.cfg.stationary_speed_mps)
+        self._vel_noise = VelocityNoise(self.cfg.gnss_vel_sigma_mps)  # from the innovations
+        self._t_vel_noise_s: float | None = None  # the last epoch that fed it at rest
+        self._vel_innovation: tuple[float, float, float] | None = None  # t, z_n, z_e
         self._sigma_level_rad = 0.0  # tilt error of the window's own motion (levelling.py)
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
@@ -665,6 +673,7 @@ class EkfEngine:
             if fix.sog_mps is not None and fix.sog_mps < self.cfg.stationary_speed_mps:
                 self._rest_epoch = (t_e, row[ROW_V].copy())
                 self._direction_since_rest = None
+                self._measure_velocity_noise_at_rest(fix, t_e)
             self._align_heading(fix, t_e, row)
             return
         if self._hist.spacing(t_e) > MAX_IMU_STEP_S:
@@ -713,9 +722,9 @@ class EkfEngine:
             if a_ant is not None:  # its smooth part in the EPOCH column, the rest white
                 a_col = a_ant.column
                 sigma_v = math.hypot(sigma_v, a_ant.sigma_white_mps2 * self._epoch_sigma_s())
-            measurements.append(
-                fuse_velocity(row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], sigma_v, a_col)
-            )
+            m_vel = fuse_velocity(row[ROW_V], c_e, w_e, self._l_imu_ant_b, vel[0], sigma_v, a_col)
+            measurements.append(m_vel)
+            self._measure_velocity_noise(fix, t_e, m_vel)
             sigma_course = math.hypot(vel[1], self._velocity_timing_sigma_mps(a_ant))
             course = self._course_residual(fix, t_e, row, w_e, sigma_course)
             if course is not None:
@@ -1624,6 +1633,45 @@ class EkfEngine:
             return None
         return np.maximum(np.array(sig), 1e-3)
 
+    def _measure_velocity_noise(self, fix: GnssFix, t_e: float, m: Measurement) -> None:
+        """Feed the receiver's velocity noise (:class:`VelocityNoise`) with the change of an
+        RTK fixed epoch's velocity innovation since the last: two fixes' errors and the
+        filter's share of both innovations (2 H P H^T, taken out). The change, not the
+        innovation: a velocity 0.3 m/s off for 20 s was the receiver's noise in it, weighed
+        so, fused, and the positions went 1.75 m off (tests/test_gnss_glitches.py)."""
+        if (
+            fix.quality != FixQuality.RTK_FIXED
+            or fix.vel_ne_mps is None
+            or fix.sog_mps is None
+            or fix.sog_mps < COG_RELIABLE_SPEED_MPS
+        ):
+            self._vel_innovation = None
+            return
+        assert self._p is not None
+        hph = m.h @ self._p @ m.h.T
+        z_n, z_e = m.z.tolist()
+        last, self._vel_innovation = self._vel_innovation, (t_e, z_n, z_e)
+        self._t_vel_noise_s = t_e
+        if last is None or not 0.0 < t_e - last[0] <= VELOCITY_PAIR_MAX_S:
+            return
+        dz_n, dz_e = z_n - last[1], z_e - last[2]
+        self._vel_noise.add(
+            0.5 * dz_n * dz_n - hph.item(0, 0), 0.5 * dz_e * dz_e - hph.item(1, 1), t_e - last[0]
+        )
+
+    def _measure_velocity_noise_at_rest(self, fix: GnssFix, t_e: float) -> None:
+        """Feed the receiver's velocity noise with an RTK fixed epoch at rest before the
+        heading is known: the speed over ground is the fix's velocity error (its square 2
+        sigma_v^2; the speeds under the rest test only, so somewhat less), which the first
+        courses are then weighed with (at 5 cm/s weighed as 2 cm/s, the first heading went
+        out 3 deg off NAVIGATING: `steep-turns` seed 820 with a 5 Hz receiver)."""
+        if fix.quality != FixQuality.RTK_FIXED or fix.sog_mps is None:
+            return
+        last, self._t_vel_noise_s = self._t_vel_noise_s, t_e
+        if last is not None and t_e > last:
+            half = 0.5 * fix.sog_mps * fix.sog_mps
+            self._vel_noise.add(half, half, t_e - last)
+
     def _gnss_velocity(self, fix: GnssFix) -> tuple[Array, float] | None:
         """Horizontal antenna velocity (2,) and its 1-sigma, from SOG/COG.
 
@@ -1632,7 +1680,7 @@ class EkfEngine:
         """
         if fix.sog_mps is None or int(fix.quality) not in DEFAULT_GNSS_SIGMAS:
             return None
-        sigma = max(self.cfg.gnss_vel_sigma_mps, DEFAULT_GNSS_SIGMAS[int(fix.quality)][2])
+        sigma = max(self._vel_noise.sigma_mps(), DEFAULT_GNSS_SIGMAS[int(fix.quality)][2])
         vel = fix.vel_ne_mps
         if vel is None or fix.sog_mps < COG_RELIABLE_SPEED_MPS:
             return np.zeros(2), math.hypot(sigma, fix.sog_mps)

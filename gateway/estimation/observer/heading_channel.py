@@ -219,14 +219,16 @@ class HeadingChannel:
         hdt_rad: float | None,
         yaw_rate_rps: float,
         stationary: bool,
+        vel_sigma_mps: float,
         epoch_sigma_s: float = 0.0,
     ) -> HeadingReference | None:
         """Best heading reference at epoch ``t_s`` (smallest sigma), or None: hold on gyro.
 
         ``cog_ref_rad`` and ``speed_ref_mps`` are of the reference point (lever-arm
         corrected); ``psi_hat_rad`` is the platform heading at the same instant. A course's
-        sigma has the yaw rate times the epoch time's 1-sigma ``epoch_sigma_s`` in it (0 on
-        a UTC host): the course of an epoch placed dtau late is the heading w dtau before.
+        sigma is the velocity's 1-sigma ``vel_sigma_mps`` over the speed, with the yaw rate
+        times the epoch time's 1-sigma ``epoch_sigma_s`` (0 on a UTC host): the course of an
+        epoch placed dtau late is the heading w dtau before.
         """
         cfg = self.cfg
         candidates: list[HeadingReference] = []
@@ -245,9 +247,7 @@ class HeadingChannel:
                 self.reversing = False
             in_band = d > REVERSE_ENTER_RAD if self.reversing else d < REVERSE_LEAVE_RAD
             if in_band and speed_ref_mps > cfg.cog_min_speed_mps:
-                sigma = math.hypot(
-                    cfg.gnss_vel_sigma_mps / speed_ref_mps, yaw_rate_rps * epoch_sigma_s
-                )
+                sigma = math.hypot(vel_sigma_mps / speed_ref_mps, yaw_rate_rps * epoch_sigma_s)
                 if self.reversing:
                     psi = (cog_ref_rad + math.pi) % (2.0 * math.pi)
                     self._course = HeadingReference(psi, sigma, HeadingSource.COG_REVERSED)

@@ -64,6 +64,7 @@ from gateway.estimation.engine_base import (
 from gateway.estimation.epoch_clock import EpochClock, late_epoch_text
 from gateway.estimation.geodesy import LocalFrame
 from gateway.estimation.gnss_error import (
+    VelocityNoise,
     displacement_sigma_m,
     fix_position_sigma_m,
     fix_velocity_ne_mps,
@@ -313,6 +314,7 @@ class ObserverEngine:
         self._az_learn_s = 0.0  # time the z accelerometer bias has learnt on RTK heights
         self._lever_vd_prev_mps: float | None = None  # (C (w x l_imu))_d at the last learning
         self._e_var_mps4 = 0.0  # running variance of one horizontal e component
+        self._vel_noise = VelocityNoise(cfg.gnss_vel_sigma_mps)  # the receiver's, from e
         self._epoch_interval_s = 0.1  # last closed-loop GNSS interval
         self._t_last_epoch_s: float | None = None
         self._control_until_s: float | None = None  # IMU time the epoch's control rates end
@@ -807,7 +809,7 @@ class ObserverEngine:
         # Closed on it, a pull-away after a restart kicked pitch 0.2 deg as the held course
         # turned, 0.39 deg off with 0.09 stated (steep-turns seed 7, stalls): the loop stays
         # open for those epochs, until the speed along body x takes over.
-        sigma_v = fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps)
+        sigma_v = fix_velocity_sigma_mps(fix, self._gnss_vel_sigma_mps())
         creeping = speed_ref > CREEP_SIGMAS * sigma_v
         rest_reference = self._at_rest and (self._heading_aligned or not creeping)
         v_tilt, closed = (v_imu[0], v_imu[1]), self._heading_aligned or rest_reference
@@ -870,9 +872,7 @@ class ObserverEngine:
         # where the gate had this fix's noise (RTK fixed): it has the RTK figure, so a noisier
         # quality's epochs are "glitches" by their noise alone, and left without the velocity
         # DGNSS spells drifted (cross-track 6.8 -> 15.6 cm on float-spells)
-        rejected = (
-            glitch and self._velocity_rejected(t_e) and sigma_v <= self.cfg.gnss_vel_sigma_mps
-        )
+        rejected = glitch and self._velocity_rejected(t_e) and sigma_v <= self._gnss_vel_sigma_mps()
         self._correct_position(fix, t_e, row, c_e, None if rejected else (v_ref[0], v_ref[1]))
 
     def _hold_control(self, t_e: float) -> None:
@@ -1121,7 +1121,7 @@ class ObserverEngine:
         v_ant_e = velocity_at(v_e, c_e, w_lever, (0.0, 0.0, 0.0), self._l_ant_f)
         u_ant = along_body_x(v_ant_e[0], v_ant_e[1], c_e)
         sigma = math.hypot(
-            fix_velocity_sigma_mps(fix, cfg.gnss_vel_sigma_mps), cfg.dr_velocity_floor_mps
+            fix_velocity_sigma_mps(fix, self._gnss_vel_sigma_mps()), cfg.dr_velocity_floor_mps
         )
         # the inertial velocity's error since the last epoch gave one: the tilt's, g theta t
         since_s = 0.0 if self._t_velocity_s is None else max(0.0, t_e - self._t_velocity_s)
@@ -1335,7 +1335,7 @@ class ObserverEngine:
         prow, vn, ve = last
         u = along_body_x(vn + row[_SF_N] - prow[_SF_N], ve + row[_SF_E] - prow[_SF_E], c_e)
         sigma = math.hypot(
-            fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps),
+            fix_velocity_sigma_mps(fix, self._gnss_vel_sigma_mps()),
             self._lever_sigma_mps(),
             GRAVITY_MPS2 * self._sigma_tilt_rad(0.0) * (row[_T] - prow[_T]),
         )
@@ -1463,6 +1463,11 @@ class ObserverEngine:
         self._epoch_interval_s = interval_s
         a = min(1.0, interval_s / E_NOISE_TAU_S)
         self._e_var_mps4 += a * (0.5 * (e_n * e_n + e_e * e_e) - self._e_var_mps4)
+        fix = self._last_fix
+        if fix is not None and fix.quality == FixQuality.RTK_FIXED:
+            # the mismatch e T is two fixes' velocity errors: 2 sigma_v^2 a component
+            dv_n, dv_e = e_n * interval_s, e_e * interval_s
+            self._vel_noise.add(0.5 * dv_n * dv_n, 0.5 * dv_e * dv_e, interval_s)
         return glitch
 
     def _filter_epoch(
@@ -1642,7 +1647,7 @@ class ObserverEngine:
         shrink with the period, so a 20 Hz receiver is not half rejected, nor does a 1 Hz
         receiver get a gate 10 times wider than its noise."""
         cfg = self.cfg
-        noise_mps = cfg.glitch_sigma * math.sqrt(2.0) * cfg.gnss_vel_sigma_mps
+        noise_mps = cfg.glitch_sigma * math.sqrt(2.0) * self._gnss_vel_sigma_mps()
         return noise_mps + cfg.e_gate_mps2 * period_s
 
     def _set_tilt_open(self, t_s: float | None) -> None:
@@ -1787,7 +1792,7 @@ class ObserverEngine:
             if hdt_rad is not None:
                 target, sigma = hdt_rad, cfg.hdt_sigma_deg * DEG_TO_RAD
             elif speed_ref_mps >= cfg.cog_min_speed_mps:
-                sigma_v = math.hypot(cfg.gnss_vel_sigma_mps, self._ant_lever_sigma_mps())
+                sigma_v = math.hypot(self._gnss_vel_sigma_mps(), self._ant_lever_sigma_mps())
                 self._courses.add(t_e, wrap_pi(cog_ref_rad - row[_PSI]), sigma_v / speed_ref_mps)
                 found = self._courses.alignment(
                     self._heading.kf.sigma_rps,
@@ -1829,7 +1834,7 @@ class ObserverEngine:
         psi_e = row[_PSI] - (self._hc_rad - row[_HC])
         ref = self._heading.select_reference(
             t_e, psi_e, cog_ref_rad, speed_ref_mps, hdt_rad, yaw_rate_rps, self._stationary,
-            self.clock.epoch_sigma_s,
+            self._gnss_vel_sigma_mps(), self.clock.epoch_sigma_s,
         )  # fmt: skip
         corr = self._heading.correct(
             t_e, psi_e, ref, self._hc_rad, c_bn_dd, obs.learn, yaw_rate_rps,
@@ -2014,7 +2019,7 @@ class ObserverEngine:
             return
         self._t_position_s = t_e
         sigma_v = math.hypot(
-            fix_velocity_sigma_mps(fix, self.cfg.gnss_vel_sigma_mps), self.cfg.dr_velocity_floor_mps
+            fix_velocity_sigma_mps(fix, self._gnss_vel_sigma_mps()), self.cfg.dr_velocity_floor_mps
         )
         sigma_a = GRAVITY_MPS2 * self._sigma_tilt_rad(0.0)
         self._position.predict(interval_s, sigma_v * interval_s + 0.5 * sigma_a * interval_s**2)
@@ -2317,9 +2322,14 @@ class ObserverEngine:
         """Steady roll/pitch variance from the IMU's white noise through the tilt loop."""
         return self._tilt_loop.noise_tilt_var()
 
+    def _gnss_vel_sigma_mps(self) -> float:
+        """The RTK velocity 1-sigma per axis the fixes are weighed with, m/s: the config's,
+        or the receiver's where more (:class:`VelocityNoise`, from eq. 3's mismatches)."""
+        return self._vel_noise.sigma_mps()
+
     def _fix_sigma_v(self) -> float:
         """The last fix's horizontal velocity 1-sigma per axis, at least RTK's, m/s."""
-        fix, sigma_rtk = self._last_fix, self.cfg.gnss_vel_sigma_mps
+        fix, sigma_rtk = self._last_fix, self._gnss_vel_sigma_mps()
         return sigma_rtk if fix is None else fix_velocity_sigma_mps(fix, sigma_rtk)
 
     def _model_tilt_var(self, open_s: float) -> float:
