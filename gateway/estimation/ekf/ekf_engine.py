@@ -301,7 +301,7 @@ class EkfEngine:
         self._rest_bias_s = 0.0  # rest duration behind the gyro bias estimate, 0 if none
         self._win_motion = WindowMotion(self.cfg.gnss_vel_sigma_mps, self.cfg.stationary_speed_mps)
         self._vel_noise = VelocityNoise(self.cfg.gnss_vel_sigma_mps)  # from the innovations
-        self._t_vel_noise_s: float | None = None  # the last epoch that fed it at rest
+        self._t_vel_noise_s: float | None = None  # the last epoch that fed it (for the rest feed)
         self._vel_innovation: tuple[float, float, float] | None = None  # t, z_n, z_e
         self._sigma_level_rad = 0.0  # tilt error of the window's own motion (levelling.py)
         # GNSS bookkeeping
