@@ -100,6 +100,11 @@ VARIANTS: dict[str, tuple[str, dict[str, Any]]] = {
         "receiver velocity 5 cm/s 1-sigma (u-blox F9P's datasheet), 2 cm/s configured",
         {"gnss": {"velocity_sigma_mps": 0.05}},
     ),
+    "pos-white": (
+        "2 cm per horizontal axis of white position noise on every fix (a receiver that "
+        "does not smooth its solution), GST stating it",
+        {"gnss": {"position_white_sigma_m": 0.02}},
+    ),
     "hdt": ("dual-antenna heading (HDT)", {"gnss": {"hdt": True}}),
     "imu-mounted-rotated": (
         "IMU upside down and turned 90 deg (config gives the mounting)",

@@ -6,7 +6,8 @@ default) in the formats of SPEC 2. Error model per fix quality (:class:`NoiseMod
 
 - position: first-order Gauss-Markov per axis (RTK multipath and atmosphere residuals are
   correlated over tens of seconds, not white), one process per quality so that a quality
-  change makes the jump a real receiver shows;
+  change makes the jump a real receiver shows; plus, if set, white noise at every epoch
+  (``position_white_sigma_m``: a receiver that does not smooth its solution);
 - velocity: white per horizontal axis (carrier-phase Doppler is smooth and independent of the
   position error), giving SOG and COG;
 - heading (HDT): white, ``heading_sigma_rad``.
@@ -117,6 +118,9 @@ class GnssReceiverConfig:
     # same with RTK or without; u-blox F9P's datasheet has 0.05 m/s); None: each quality's
     # sigma_vel_mps from ``noise``
     velocity_sigma_mps: float | None = None
+    # white position noise added to every fix, 1-sigma per horizontal axis (vertical twice
+    # it): a receiver that does not smooth its solution, or rounds it; GST includes it
+    position_white_sigma_m: float = 0.0
     heading_sigma_rad: float = math.radians(0.15)
     latency_s: float = 0.040
     latency_jitter_s: float = 0.003
@@ -169,6 +173,11 @@ class GnssReceiverConfig:
             raise ValueError(
                 f"velocity_sigma_mps={self.velocity_sigma_mps}: expected a finite 1-sigma, "
                 "m/s, 0 or more (or none: the noise table's)"
+            )
+        if not 0.0 <= self.position_white_sigma_m < math.inf:
+            raise ValueError(
+                f"position_white_sigma_m={self.position_white_sigma_m}: expected a finite "
+                "1-sigma, m, 0 or more"
             )
         for interval in self.fix_schedule:
             quality = FixQuality(interval[2])
@@ -265,6 +274,10 @@ def simulate_receiver(truth: Truth, config: GnssReceiverConfig | None = None) ->
         sigma_h[sel], sigma_v[sel] = model.sigma_h_m, model.sigma_v_m
 
     pos_ned = pos_ned + pos_err
+    if cfg.position_white_sigma_m > 0.0:  # drawn only when set: other runs' draws unchanged
+        white = cfg.position_white_sigma_m * np.array([1.0, 1.0, 2.0])
+        pos_ned = pos_ned + white * rng.standard_normal((n, 3))
+        sigma_h, sigma_v = np.hypot(sigma_h, white[0]), np.hypot(sigma_v, white[2])
     vel_ne = vel_ne + vel_sigma[:, None] * rng.standard_normal((n, 2))
     if cfg.dead_reckoning_limit_s > 0.0:
         _carry_on(t_utc, quality, pos_ned, vel_ne, cfg.dead_reckoning_limit_s)

@@ -118,6 +118,25 @@ def test_position_noise_is_time_correlated_with_the_configured_sigma() -> None:
     assert lag1 > 0.99  # tau 30 s at 10 Hz: a = 0.9967; white noise would give ~0
 
 
+def test_white_position_noise_is_added_to_every_epoch_and_stated_by_gst() -> None:
+    """``position_white_sigma_m``: independent from epoch to epoch (its steps show sqrt(2)
+    of it, the wander's barely any), vertical twice; GST states the total; refused below 0."""
+    truth = straight_truth(120.0, (1.0, 0.0))
+    out = simulate_receiver(truth, GnssReceiverConfig(position_white_sigma_m=0.02))
+    truth_ned = np.column_stack(
+        ((out.t_utc - T0) * 1.0, np.zeros(len(out.t_utc)), np.zeros(len(out.t_utc)))
+    )
+    steps = np.diff(lla_to_ned(out.lla, ORIGIN) - truth_ned, axis=0)
+    assert 0.025 < np.std(steps[:, 0]) < 0.032  # sqrt(2) x 2 cm
+    assert 0.025 < np.std(steps[:, 1]) < 0.032
+    assert 0.050 < np.std(steps[:, 2]) < 0.064
+    gst = [m for _, m in parsed(out, "GST")]
+    assert all(m.std_dev_latitude == pytest.approx(math.hypot(0.01, 0.02), abs=1e-3) for m in gst)
+    assert all(m.std_dev_altitude == pytest.approx(math.hypot(0.025, 0.04), abs=1e-3) for m in gst)
+    with pytest.raises(ValueError, match="position_white_sigma_m"):
+        GnssReceiverConfig(position_white_sigma_m=-0.01)
+
+
 def test_sog_and_cog_follow_the_velocity_and_reversing_keeps_the_course() -> None:
     fwd = simulate_receiver(straight_truth(20.0, (0.0, 2.0)))
     rev = simulate_receiver(
