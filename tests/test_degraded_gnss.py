@@ -80,7 +80,7 @@ def _float_minute(channel: PositionChannel, residual_m: float) -> list[float]:
     the position corrections north."""
     out = []
     for _ in range(600):
-        channel.set_fix(FixQuality.RTK_FLOAT, FLOAT_SIGMA)
+        channel.set_fix(FixQuality.RTK_FLOAT, FLOAT_SIGMA, 0.0)
         channel.predict(0.1, 0.03 * 0.1)
         out.append(channel.update([residual_m, 0.0])[0])
     return out
@@ -91,7 +91,7 @@ def test_a_displacement_between_two_fixes_has_their_white_noise_and_what_wander_
     and the little the 60 s wander moved (0.9 cm, against 2.8 cm for independent errors), as
     a simulated white + Gauss-Markov error gives it; fixes of different kinds share nothing."""
     sigma, share, tau = 0.02, 0.3, 60.0
-    got = displacement_sigma_m(sigma, sigma, 1.0, share, tau)
+    got = displacement_sigma_m(sigma, sigma, 1.0, share, tau, 0.0)
     rng = np.random.default_rng(3)
     n, rho = 200_000, math.exp(-1.0 / tau)
     white, wander = share * sigma, math.sqrt(1.0 - share * share) * sigma
@@ -100,14 +100,14 @@ def test_a_displacement_between_two_fixes_has_their_white_noise_and_what_wander_
     d = (w1 + white * rng.standard_normal(n)) - (w0 + white * rng.standard_normal(n))
     assert got == pytest.approx(float(np.std(d)), rel=0.02)
     assert 0.008 < got < 0.010
-    assert displacement_sigma_m(sigma, 0.3, 1.0, share, None) == pytest.approx(
+    assert displacement_sigma_m(sigma, 0.3, 1.0, share, None, 0.0) == pytest.approx(
         math.hypot(sigma, 0.3)
     )
 
 
 def test_a_float_minute_is_not_averaged_away_and_fixed_takes_over_at_once() -> None:
     ch = PositionChannel(correlation_s=60.0, white_share=0.3)
-    ch.set_fix(FixQuality.RTK_FIXED, FIXED_SIGMA)
+    ch.set_fix(FixQuality.RTK_FIXED, FIXED_SIGMA, 0.0)
     ch.reset()
     moved = sum(_float_minute(ch, 0.3))
     # A white model would follow a 30 cm float offset within seconds; the wander is mostly
@@ -117,7 +117,7 @@ def test_a_float_minute_is_not_averaged_away_and_fixed_takes_over_at_once() -> N
     # at 3 cm/s per epoch, bounded by what the float fixes still tell (~9 cm)
     assert 0.05 < ch.sigma_ne_m()[0] < 0.15
     # RTK fixed: a new solution, independent error; the first epoch takes nearly all of it
-    ch.set_fix(FixQuality.RTK_FIXED, FIXED_SIGMA)
+    ch.set_fix(FixQuality.RTK_FIXED, FIXED_SIGMA, 0.0)
     ch.predict(0.1, 0.002)
     gain = ch.update([0.1, 0.0])[0] / 0.1
     assert gain > 0.9
@@ -126,7 +126,7 @@ def test_a_float_minute_is_not_averaged_away_and_fixed_takes_over_at_once() -> N
 
 def test_a_reset_carries_the_fix_error() -> None:
     ch = PositionChannel(correlation_s=60.0, white_share=0.3)
-    ch.set_fix(FixQuality.RTK_FLOAT, FLOAT_SIGMA)
+    ch.set_fix(FixQuality.RTK_FLOAT, FLOAT_SIGMA, 0.0)
     ch.reset()
     assert_allclose(list(ch.sigma_ne_m()), list(FLOAT_SIGMA[:2]))
     # the next residual is the change of the fix error, not the fix error again: a white

@@ -111,6 +111,22 @@ def test_a_fixed_track_drifting_2_cm_s_is_caught_within_the_window_and_noise_is_
     assert flagged_at is not None and 10.0 < flagged_at < 20.0, flagged_at
 
 
+def test_an_epoch_without_a_velocity_leaves_the_drift_test_seeing() -> None:
+    """A first epoch with no course (no velocity) and a solution drifting 5 cm/s from the
+    start: caught a step later than with the velocity there (that step is not one). It had
+    a NaN miss, which stayed in the window's sums for its 10 s: blind until 10.2 s."""
+    flagged = []
+    for first_v in ((0.0, 3.0), None):
+        track = GnssTrack()
+        track.add(0.0, (0.0, 0.0), first_v, 0.014, quality=4)
+        t = 0.1
+        while not track.drifting and t < 20.0:
+            track.add(t, (0.05 * t, 3.0 * t), (0.0, 3.0), 0.014, quality=4)
+            t += 0.1
+        flagged.append(round(t, 1))
+    assert flagged[0] < 10.0 and flagged[1] <= flagged[0] + 0.15, flagged  # one step less
+
+
 def test_a_swaying_mast_at_1_hz_and_a_new_solution_are_no_drift() -> None:
     """1 Hz epochs of a 3 m mast rocking at 0.7 Hz, 0.3 m/s: the antenna's velocity,
     sampled once a second, misses its mean by decimetres over each step, and the trapezoid

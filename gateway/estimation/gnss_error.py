@@ -10,7 +10,7 @@ fixes to sigma^2 / N, believe it, and follow the wander.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 from drivers.samples import CORRECTED_QUALITIES, DEFAULT_GNSS_SIGMAS, GnssFix
 
@@ -99,12 +99,16 @@ def fix_velocity_ne_mps(fix: GnssFix, stationary_speed_mps: float) -> tuple[floa
     return vel
 
 
-def split_fix_variance(sigma_m: float, white_share: float) -> tuple[float, float]:
+def split_fix_variance(
+    sigma_m: float, white_share: float, seen_share: float
+) -> tuple[float, float]:
     """(white, wandering) variance of a fix error of 1-sigma ``sigma_m``: ``white_share`` of
-    the sigma is independent from epoch to epoch, the rest is the Gauss-Markov wander."""
+    the sigma is independent from epoch to epoch (or ``seen_share`` where more: what the
+    receiver's track shows, :class:`PositionNoise`), the configured rest is the Gauss-Markov
+    wander (which no step of the track shows, so a white receiver keeps it)."""
     s2 = sigma_m * sigma_m
     w2 = white_share * white_share
-    return w2 * s2, (1.0 - w2) * s2
+    return max(w2, seen_share * seen_share) * s2, (1.0 - w2) * s2
 
 
 def displacement_sigma_m(
@@ -113,14 +117,66 @@ def displacement_sigma_m(
     dt_s: float,
     white_share: float,
     correlation_s: float | None,
+    seen_share: float,
 ) -> float:
     """1-sigma of the difference of two fixes' positions on one axis, ``dt_s`` apart: their
     white parts add, their wanders (:func:`split_fix_variance`) cancel as far as they are
     still correlated (exp(-dt / ``correlation_s``); None: two solutions of different kinds,
     no common wander). An RTK position moves by a few mm from one epoch to the next however
-    far it is off."""
-    white_a, wander_a = split_fix_variance(sigma_a_m, white_share)
-    white_b, wander_b = split_fix_variance(sigma_b_m, white_share)
+    far it is off (a white receiver's, ``seen_share``, by its white noise)."""
+    white_a, wander_a = split_fix_variance(sigma_a_m, white_share, seen_share)
+    white_b, wander_b = split_fix_variance(sigma_b_m, white_share, seen_share)
     rho = 0.0 if correlation_s is None else math.exp(-dt_s / correlation_s)
     var = white_a + white_b + wander_a + wander_b - 2.0 * rho * math.sqrt(wander_a * wander_b)
     return math.sqrt(max(var, 0.0))
+
+
+#: Steps of the receiver's track at most this long, s, show its positions' white noise in
+#: their miss of where its velocities led: at 4 Hz and up a turn's trapezoid error is
+#: millimetres and the velocities' noise adds sigma_v dt / sqrt(2) per axis to the miss
+#: (5 cm/s at 5 Hz: 0.7 cm; taken as the positions', which errs wide). A 1 or 2 Hz
+#: receiver's steps are the configured share's.
+POSITION_NOISE_MAX_STEP_S = 0.25
+#: Time constant of :class:`PositionNoise`'s running mean, s (a plain mean before it).
+POSITION_NOISE_TAU_S = 10.0
+#: A miss counts up to this many of its running 1-sigma, or of the fix's sigma where more
+#: (a step the track did not take for a jump is no noise beyond it).
+POSITION_CLIP_SIGMAS = 4.0
+
+
+@dataclass
+class PositionNoise:
+    """The white part of the receiver's horizontal position error per axis, per fix quality,
+    as its track shows it (:class:`gateway.estimation.gnss_track.GnssTrack` feeds it each
+    short step's miss of its velocities' trapezoid: two positions' white errors).
+
+    The engines split a fix's sigma into a white part and a wander by a configured share
+    (0.3: an RTK solution moves by millimetres from one epoch to the next, its multipath
+    and atmosphere wander). A receiver whose 2 cm are white from epoch to epoch had the
+    EKF gate out a third of its RTK fixes at 5 sigma of the white share and flap between
+    NAVIGATING and DEGRADED a few times a second (`short` seed 5); where the steps show
+    more white noise than the share, the engines take theirs."""
+
+    #: fix quality: (white variance m^2 per axis, time it has been measured over s)
+    _var_m2: dict[int | None, tuple[float, float]] = field(default_factory=dict)
+
+    def add(
+        self, quality: int | None, miss_ne_m: tuple[float, float], interval_s: float,
+        sigma_h_m: float,
+    ) -> None:  # fmt: skip
+        """One step's miss (north, east) ``interval_s`` long between two fixes of one
+        solution of 1-sigma ``sigma_h_m`` (horizontal, root sum of north and east)."""
+        var, span_s = self._var_m2.get(quality, (0.0, 0.0))
+        # a miss has twice the white variance; clipped at POSITION_CLIP_SIGMAS of its sigma
+        clip = POSITION_CLIP_SIGMAS**2 * max(2.0 * var, sigma_h_m * sigma_h_m)
+        sample = 0.25 * (min(miss_ne_m[0] ** 2, clip) + min(miss_ne_m[1] ** 2, clip))
+        span_s += interval_s
+        var += interval_s / min(span_s, POSITION_NOISE_TAU_S) * (sample - var)
+        self._var_m2[quality] = (var, span_s)
+
+    def white_share(self, quality: int | None, sigma_ne_m: tuple[float, float]) -> float:
+        """The white 1-sigma the steps of ``quality`` show, as a share of a fix's per-axis
+        sigma (``sigma_ne_m``, north and east); 0 before any step."""
+        var = self._var_m2.get(quality, (0.0, 0.0))[0]
+        axis2 = 0.5 * (sigma_ne_m[0] ** 2 + sigma_ne_m[1] ** 2)
+        return math.sqrt(var / axis2) if axis2 > 0.0 else 0.0

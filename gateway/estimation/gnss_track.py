@@ -19,6 +19,8 @@ import math
 from collections import deque
 from dataclasses import dataclass, field
 
+from gateway.estimation.gnss_error import POSITION_NOISE_MAX_STEP_S, PositionNoise
+
 #: Epochs further apart than this are not compared (an outage: no continuity to judge).
 MAX_STEP_S = 2.0
 #: A wheeled vehicle's vertical acceleration on the ground (a crest at 4 m/s, 20 m radius).
@@ -60,6 +62,8 @@ class GnssTrack:
     _steps: deque[tuple[float, float, float, float, float, float]] = field(default_factory=deque)
     _window_s: float = 0.0  # the steps' dt summed at the last test: time driven in the window
     _quality: int | None = None  # the solution the window's steps belong to
+    #: the white noise of its positions, from the short steps' misses
+    noise: PositionNoise = field(default_factory=PositionNoise)
 
     def add(
         self, t_s: float, p_ne_m: tuple[float, float], v_ne_mps: tuple[float, float] | None,
@@ -81,7 +85,11 @@ class GnssTrack:
             # the receiver's UTC went back (a clock glitch): its epochs are not a track we
             # can follow; taken as continuous, the engines reset to positions 1 s old
             self.jumped_at_s = t_s
-        elif last is not None and 0.0 < t_s - last[0] <= MAX_STEP_S and math.isfinite(vn + ve):
+        elif (
+            last is not None
+            and 0.0 < t_s - last[0] <= MAX_STEP_S
+            and math.isfinite(vn + ve + last[3] + last[4])
+        ):
             dt = t_s - last[0]
             miss_n = p_ne_m[0] - (last[1] + 0.5 * (last[3] + vn) * dt)
             miss_e = p_ne_m[1] - (last[2] + 0.5 * (last[4] + ve) * dt)
@@ -98,9 +106,13 @@ class GnssTrack:
             # is: each step's miss is its own evidence, so a drift seen before a headland or
             # a glitch is still a drift after it (cleared, it took 8.5 s to see it again,
             # while both engines followed a fixed solution 49 cm off, NAVIGATING)
-            if math.hypot(miss_n, miss_e) > bound_m + curve_m:
+            jumped = math.hypot(miss_n, miss_e) > bound_m + curve_m
+            if jumped:
                 self.jumped_at_s = t_s
-            elif not new_solution and min(speed_mps, speed_last_mps) >= DRIFT_MIN_SPEED_MPS:
+            one_solution = not jumped and not new_solution
+            if one_solution and dt <= POSITION_NOISE_MAX_STEP_S:
+                self.noise.add(quality, (miss_n, miss_e), dt, max(sigma_h_m, last[5]))
+            if one_solution and min(speed_mps, speed_last_mps) >= DRIFT_MIN_SPEED_MPS:
                 # the trapezoid's miss in the turn itself (twice), and the step's noise as
                 # 1-sigma: a mast swaying near 1 Hz (omega 2 pi) moves the velocity by dv in
                 # a step, and the trapezoid misses by dv dt (omega dt) / 12, at most a quarter

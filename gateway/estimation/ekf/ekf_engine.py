@@ -684,7 +684,7 @@ class EkfEngine:
         p = self._p
         sig_pos = self._position_sigma(fix)
         if sig_pos is not None:
-            self._set_fix_error_model(sig_pos, restart=self._last_quality != fix.quality)
+            self._set_fix_error_model(fix, sig_pos, restart=self._last_quality != fix.quality)
         self._last_quality = fix.quality
         p_ant = self._antenna_ned(fix) if sig_pos is not None else None
         if p_ant is not None and sig_pos is not None:
@@ -1058,7 +1058,7 @@ class EkfEngine:
         self._chassis_pitch_rad = 0.0
         self._epoch_err_s = 0.0
         self._track_epoch_error()
-        self._set_fix_error_model(sig_pos, restart=True)
+        self._set_fix_error_model(fix, sig_pos, restart=True)
         self._set_from_fix(fix, t_e, row_aligned)
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
@@ -1450,15 +1450,18 @@ class EkfEngine:
         self._last_quality = fix.quality
         self._t_accepted_rx_s = fix.t
 
-    def _set_fix_error_model(self, sig_pos: Array, restart: bool) -> None:
-        """The white and wandering parts of this fix's error (:func:`split_fix_variance`)
-        and the wander's driving noise; ``restart``: a new quality is a new receiver solution,
-        its error independent of everything so far (FIX rows of P reset)."""
+    def _set_fix_error_model(self, fix: GnssFix, sig_pos: Array, restart: bool) -> None:
+        """The white and wandering parts of this fix's error (:func:`split_fix_variance`:
+        the configured share, or what the receiver's track shows where more) and the
+        wander's driving noise; ``restart``: a new quality is a new receiver solution, its
+        error independent of everything so far (FIX rows of P reset)."""
         p = self._p
         assert p is not None
+        sig_ne = (float(sig_pos[0]), float(sig_pos[1]))
+        seen = self._track.noise.white_share(int(fix.quality), sig_ne)
         for i in range(3):
             self._fix_var_white_m2[i], self._fix_var_wander_m2[i] = split_fix_variance(
-                float(sig_pos[i]), self.cfg.gnss_white_share
+                float(sig_pos[i]), self.cfg.gnss_white_share, seen
             )
         self._q_c[FIX] = 2.0 * self._fix_var_wander_m2 / self.cfg.gnss_error_correlation_s
         if restart:

@@ -1127,7 +1127,8 @@ class ObserverEngine:
         since_s = 0.0 if self._t_velocity_s is None else max(0.0, t_e - self._t_velocity_s)
         sigma_u = math.hypot(sigma, GRAVITY_MPS2 * self._sigma_tilt_rad(0.0) * since_s)
         p_ref = self._reference_ne_m(fix, c_e)
-        sigma_p = self._fix_sigma_m(fix)[0]
+        sigma_ned = self._fix_sigma_m(fix)
+        sigma_p = sigma_ned[0]
         # (the engine's velocity within its own error since the last epoch that gave one:
         # after an outage at a stop it had drifted with the tilt, g theta t, beyond the
         # fix's noise, and no epoch at the stop was still again, nor moving: the velocity
@@ -1152,6 +1153,7 @@ class ObserverEngine:
                 t_e - t_stop,
                 cfg.gnss_white_share,
                 cfg.gnss_error_correlation_s if quality == int(fix.quality) else None,
+                self._track.noise.white_share(int(fix.quality), sigma_ned[:2]),
             )
             if abs(moved_x) < DIRECTION_SIGMAS * sigma_x:
                 moved_x = None
@@ -1902,7 +1904,9 @@ class ObserverEngine:
                 self._log.warning(t_e, late_epoch_text(t_e, self._hist[0][_T]), "late")
             return
         channel = self._position
-        channel.set_fix(fix.quality, sigma_ned)
+        channel.set_fix(
+            fix.quality, sigma_ned, self._track.noise.white_share(int(fix.quality), sigma_ned[:2])
+        )
         if not self._nav_valid:
             age = self._t_s - t_e
             vn, ve = v_ref_ne if v_ref_ne is not None else (0.0, 0.0)

@@ -95,11 +95,16 @@ class PositionChannel:
         self._var_height = 0.0  # the engine's height error variance
         self._interval_s = 0.0  # of the last prediction
 
-    def set_fix(self, quality: FixQuality, sigma_ned_m: tuple[float, float, float]) -> None:
-        """The sigma of the fix about to be used (north, east weighed, down for the gate); a
-        new quality restarts the fix error."""
+    def set_fix(
+        self, quality: FixQuality, sigma_ned_m: tuple[float, float, float], seen_share: float
+    ) -> None:
+        """The sigma of the fix about to be used (north, east weighed, down for the gate) and
+        the white share its receiver's track shows (:func:`split_fix_variance`); a new
+        quality restarts the fix error."""
         for i in range(2):
-            self._var_w[i], self._var_b[i] = split_fix_variance(sigma_ned_m[i], self._white_share)
+            self._var_w[i], self._var_b[i] = split_fix_variance(
+                sigma_ned_m[i], self._white_share, seen_share
+            )
         self._var_d = sigma_ned_m[2] * sigma_ned_m[2]
         if quality != self._quality:
             self._quality = quality
