@@ -274,11 +274,11 @@ def simulate_receiver(truth: Truth, config: GnssReceiverConfig | None = None) ->
         sigma_h[sel], sigma_v[sel] = model.sigma_h_m, model.sigma_v_m
 
     pos_ned = pos_ned + pos_err
-    if cfg.position_white_sigma_m > 0.0:  # drawn only when set: other runs' draws unchanged
+    vel_ne = vel_ne + vel_sigma[:, None] * rng.standard_normal((n, 2))
+    if cfg.position_white_sigma_m > 0.0:  # drawn after the velocity's: its noise as without
         white = cfg.position_white_sigma_m * np.array([1.0, 1.0, 2.0])
         pos_ned = pos_ned + white * rng.standard_normal((n, 3))
         sigma_h, sigma_v = np.hypot(sigma_h, white[0]), np.hypot(sigma_v, white[2])
-    vel_ne = vel_ne + vel_sigma[:, None] * rng.standard_normal((n, 2))
     if cfg.dead_reckoning_limit_s > 0.0:
         _carry_on(t_utc, quality, pos_ned, vel_ne, cfg.dead_reckoning_limit_s)
         fix = quality != FixQuality.NONE

@@ -36,6 +36,14 @@ def replay_run(run: SimRun, engine: Engine, out: Path) -> Truth:
     return Truth.load(run.truth_file)
 
 
+def replayed_with_receiver(
+    out_dir: Path, seed: int, engine: Engine, **receiver: Any
+) -> tuple[Path, Truth]:
+    """:func:`short_with_receiver` replayed by ``engine``: its frames (candump -L) and truth."""
+    out = out_dir / "out.log"
+    return out, replay_run(short_with_receiver(out_dir / "run", seed, **receiver), engine, out)
+
+
 def second_half_rms_deg(out: Path, truth: Truth) -> tuple[float, float, float]:
     """Roll, pitch and yaw RMS (deg) of the 127257 frames in ``out`` over the run's second
     half, decoded by the independent ``nmea2000`` package."""
