@@ -1,14 +1,14 @@
-"""The white part of the receiver's position noise as its track shows it
+"""The white part of the receiver's position noise as its fixes show it
 (gateway/estimation/gnss_error.py, ``PositionNoise``, fed by ``GnssTrack`` with each short
-step's miss of its velocities' trapezoid), and the split of a fix's sigma that both engines
-take from it (``split_fix_variance``)."""
+step's miss of its velocities' trapezoid and by the EKF with its innovations' changes), and
+the split of a fix's sigma that both engines take from it (``split_fix_variance``)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from gateway.estimation.gnss_error import split_fix_variance
+from gateway.estimation.gnss_error import PositionNoise, split_fix_variance
 from gateway.estimation.gnss_track import GnssTrack
 
 SIGMA_NE_M = (0.02, 0.02)  # GGA's default RTK fixed sigma per axis
@@ -74,3 +74,17 @@ def test_each_solution_has_its_own_and_a_jump_is_no_noise() -> None:
 def test_the_split_takes_the_seen_white_and_keeps_the_configured_wander() -> None:
     assert split_fix_variance(0.02, 0.3, 0.1) == pytest.approx((0.09 * 4e-4, 0.91 * 4e-4))
     assert split_fix_variance(0.02, 0.3, 1.2) == pytest.approx((1.44 * 4e-4, 0.91 * 4e-4))
+
+
+def test_samples_that_average_below_zero_are_no_white_noise() -> None:
+    """The EKF's samples are half an innovation change's square less the filter's share of
+    it: an RTK receiver that barely moves from epoch to epoch averages below zero, which is
+    no white noise (its square root took the engine down on `float-spells` seed 841)."""
+    noise = PositionNoise()
+    for k in range(50):
+        noise.add(RTK_FIXED, (-1e-5 + 1e-6 * (k % 3), -2e-5), 0.1, 1e-4)
+    assert noise.white_share(RTK_FIXED, SIGMA_NE_M) == 0.0
+    noise.add(RTK_FIXED, (1.0, 1.0), 5.0, 1e-4)  # 5 s of 10: clipped at 4 sigma of 1 cm
+    assert noise.white_share(RTK_FIXED, SIGMA_NE_M) == pytest.approx(
+        np.sqrt(0.5 * 16e-4) / 0.02, rel=0.02
+    )

@@ -45,7 +45,7 @@ VELOCITY_NOISE_TAU_S = 10.0
 VELOCITY_NOISE_MAX_S = 0.2
 #: Two velocities further apart than this, s, are not a pair whose difference is their
 #: white errors (a 1 Hz receiver's epochs and their jitter).
-VELOCITY_PAIR_MAX_S = 1.5
+INNOVATION_PAIR_MAX_S = 1.5
 #: What lever arms, the IMU's noise and the epochs' timing add to the residuals besides the
 #: receiver's velocity noise, as a share of the configured sigma: taken out in quadrature
 #: (`field` at RTK's 2 cm/s shows 1.8-2.4 cm/s in the observer's, the first minute less).
@@ -147,36 +147,40 @@ POSITION_CLIP_SIGMAS = 4.0
 @dataclass
 class PositionNoise:
     """The white part of the receiver's horizontal position error per axis, per fix quality,
-    as its track shows it (:class:`gateway.estimation.gnss_track.GnssTrack` feeds it each
-    short step's miss of its velocities' trapezoid: two positions' white errors).
+    as the fixes show it: :class:`gateway.estimation.gnss_track.GnssTrack` feeds it each
+    short step's miss of its velocities' trapezoid (two positions' white errors), the EKF
+    the change of its position innovation from one epoch to the next (which a 1 Hz
+    receiver's steps, too long for the track, still show).
 
     The engines split a fix's sigma into a white part and a wander by a configured share
     (0.3: an RTK solution moves by millimetres from one epoch to the next, its multipath
     and atmosphere wander). A receiver whose 2 cm are white from epoch to epoch had the
     EKF gate out a third of its RTK fixes at 5 sigma of the white share and flap between
-    NAVIGATING and DEGRADED a few times a second (`short` seed 5); where the steps show
+    NAVIGATING and DEGRADED a few times a second (`short` seed 5); where the fixes show
     more white noise than the share, the engines take theirs."""
 
     #: fix quality: (white variance m^2 per axis, time it has been measured over s)
     _var_m2: dict[int | None, tuple[float, float]] = field(default_factory=dict)
 
     def add(
-        self, quality: int | None, miss_ne_m: tuple[float, float], interval_s: float,
-        sigma_h_m: float,
+        self, quality: int | None, var_ne_m2: tuple[float, float], interval_s: float,
+        fix_var_m2: float,
     ) -> None:  # fmt: skip
-        """One step's miss (north, east) ``interval_s`` long between two fixes of one
-        solution of 1-sigma ``sigma_h_m`` (horizontal, root sum of north and east)."""
+        """One sample of the white variance on each axis (north, east; unbiased, e.g. half
+        the square of the difference of two positions' white errors), ``interval_s`` since
+        the last, of fixes whose error variance is ``fix_var_m2`` per axis."""
         var, span_s = self._var_m2.get(quality, (0.0, 0.0))
-        # a miss has twice the white variance; clipped at POSITION_CLIP_SIGMAS of its sigma
-        clip = POSITION_CLIP_SIGMAS**2 * max(2.0 * var, sigma_h_m * sigma_h_m)
-        sample = 0.25 * (min(miss_ne_m[0] ** 2, clip) + min(miss_ne_m[1] ** 2, clip))
+        # clipped at POSITION_CLIP_SIGMAS of its sigma, or of the fix's where more
+        clip = POSITION_CLIP_SIGMAS**2 * max(var, fix_var_m2)
+        sample = 0.5 * (min(var_ne_m2[0], clip) + min(var_ne_m2[1], clip))
         span_s += interval_s
         var += interval_s / min(span_s, POSITION_NOISE_TAU_S) * (sample - var)
         self._var_m2[quality] = (var, span_s)
 
     def white_share(self, quality: int | None, sigma_ne_m: tuple[float, float]) -> float:
-        """The white 1-sigma the steps of ``quality`` show, as a share of a fix's per-axis
-        sigma (``sigma_ne_m``, north and east); 0 before any step."""
-        var = self._var_m2.get(quality, (0.0, 0.0))[0]
+        """The white 1-sigma the fixes of ``quality`` show, as a share of a fix's per-axis
+        sigma (``sigma_ne_m``, north and east); 0 before any sample, or where the samples
+        (the filter's share taken out of each) average below zero."""
+        var = max(self._var_m2.get(quality, (0.0, 0.0))[0], 0.0)
         axis2 = 0.5 * (sigma_ne_m[0] ** 2 + sigma_ne_m[1] ** 2)
         return math.sqrt(var / axis2) if axis2 > 0.0 else 0.0

@@ -111,7 +111,8 @@ class GnssTrack:
                 self.jumped_at_s = t_s
             one_solution = not jumped and not new_solution
             if one_solution and dt <= POSITION_NOISE_MAX_STEP_S:
-                self.noise.add(quality, (miss_n, miss_e), dt, max(sigma_h_m, last[5]))
+                half = (0.5 * miss_n * miss_n, 0.5 * miss_e * miss_e)  # a miss: two white errors
+                self.noise.add(quality, half, dt, 0.5 * max(sigma_h_m, last[5]) ** 2)
             if one_solution and min(speed_mps, speed_last_mps) >= DRIFT_MIN_SPEED_MPS:
                 # the trapezoid's miss in the turn itself (twice), and the step's noise as
                 # 1-sigma: a mast swaying near 1 Hz (omega 2 pi) moves the velocity by dv in
