@@ -203,8 +203,9 @@ def run_variant(
     name: str, seed: int, engines: Sequence[str] = ("observer", "ekf"), base: str = "field"
 ) -> dict[str, tuple[float, ...]]:
     """(roll, pitch, yaw RMS deg, ref RMS cm, ref max cm, attitude frames stating an
-    accuracy, those beyond it, headings beyond NAVIGATING's, positions beyond their mode's)
-    of each engine on one variant."""
+    accuracy, those beyond it, headings beyond NAVIGATING's, positions beyond their mode's,
+    engine faults: the times the engine raised and the core went on with a new one) of each
+    engine on one variant."""
     scenario = scenario_from_toml({"base": base, "name": name, **variant_overrides(name)})
     out: dict[str, tuple[float, ...]] = {}
     with tempfile.TemporaryDirectory(prefix="navgw-rob-") as tmp:
@@ -217,7 +218,7 @@ def run_variant(
         )
         for label in engines:
             frames = Path(tmp) / f"{label}.log"
-            replay(
+            summary = replay(
                 run.imu_log,
                 run.gnss_log,
                 frames,
@@ -241,6 +242,7 @@ def run_variant(
                 len(beyond),
                 len(heading_beyond),
                 len(position_beyond),
+                summary.stats.engine_faults,
             )
     return out
 
@@ -267,7 +269,7 @@ def main(argv: Sequence[str] | None = None) -> None:
     jobs = [(v, s) for v in args.variants for s in args.seeds]
     columns = [
         "roll rms", "pitch rms", "yaw rms", "ref rms cm", "ref max cm", "frames", "beyond",
-        "hdg beyond", "pos beyond",
+        "hdg beyond", "pos beyond", "faults",
     ]  # fmt: skip
     print("| variant | what changes | seed | engine | " + " | ".join(columns) + " |")
     print("|---" * (4 + len(columns)) + "|")
@@ -278,11 +280,12 @@ def main(argv: Sequence[str] | None = None) -> None:
         )
         for (name, seed), result in zip(jobs, results, strict=True):
             for engine, row in result.items():
-                roll, pitch, yaw, ref, ref_max, checked, beyond, hdg_beyond, pos_beyond = row
+                roll, pitch, yaw, ref, ref_max, checked, beyond, hdg_beyond, pos_beyond = row[:9]
+                faults = row[9]
                 print(
                     f"| {name} | {variant_label(name)} | {seed} | {engine} | {roll:.3f} | "
                     f"{pitch:.3f} | {yaw:.3f} | {ref:.2f} | {ref_max:.2f} | {checked:.0f} | "
-                    f"{beyond:.0f} | {hdg_beyond:.0f} | {pos_beyond:.0f} |",
+                    f"{beyond:.0f} | {hdg_beyond:.0f} | {pos_beyond:.0f} | {faults:.0f} |",
                     flush=True,
                 )
 
