@@ -708,6 +708,7 @@ class EkfEngine:
         c_e = row[ROW_C].reshape(3, 3)
         w_e, sig_lever = self._lever_rate(t_e, self._l_imu_ant_m)
         measurements: list[Measurement] = []
+        m_pos: Measurement | None = None
         if sig_pos is not None and p_ant is not None:
             if self._track.drifting and not self._velocity_suspect(t_e):
                 self._reject_position(t_e, self._track.drift_text(t_e))
@@ -717,7 +718,7 @@ class EkfEngine:
                 m_pos = self._fuse_fix_position(row, c_e, w_e, p_ant, self._epoch_moves(fix))
                 measurements.append(m_pos)
                 self._measure_position_noise(fix, t_e, m_pos, sig_pos)
-        if not measurements:  # (no position measured: the next innovation pairs with none)
+        if m_pos is None:  # (no position measured: the next innovation pairs with none)
             self._pos_innovation = None
         vel = self._gnss_velocity(fix)
         course = None
