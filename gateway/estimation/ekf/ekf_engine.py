@@ -305,7 +305,8 @@ class EkfEngine:
         self._t_vel_noise_s: float | None = None  # the last epoch that fed it (for the rest feed)
         self._vel_innovation: tuple[float, float, float] | None = None  # t, z_n, z_e
         self._pos_noise = PositionNoise()  # the fixes' white noise, from the innovations
-        self._pos_innovation: tuple[float, int, float, float] | None = None  # t, quality, z_ne
+        #: quality, (t, z_n, z_e) of the last position innovation
+        self._pos_innovation: tuple[int, tuple[float, float, float]] | None = None
         self._sigma_level_rad = 0.0  # tilt error of the window's own motion (levelling.py)
         # GNSS bookkeeping
         self._last_fix: GnssFix | None = None
@@ -1661,17 +1662,13 @@ class EkfEngine:
         ):
             self._vel_innovation = None
             return
-        assert self._p is not None
-        hph = m.h @ self._p @ m.h.T
-        z_n, z_e = m.z.tolist()
-        last, self._vel_innovation = self._vel_innovation, (t_e, z_n, z_e)
+        now = (t_e, float(m.z[0]), float(m.z[1]))
+        last, self._vel_innovation = self._vel_innovation, now
         self._t_vel_noise_s = t_e
-        if last is None or not 0.0 < t_e - last[0] <= INNOVATION_PAIR_MAX_S:
-            return
-        dz_n, dz_e = z_n - last[1], z_e - last[2]
-        self._vel_noise.add(
-            0.5 * dz_n * dz_n - hph.item(0, 0), 0.5 * dz_e * dz_e - hph.item(1, 1), t_e - last[0]
-        )
+        change = self._innovation_change(last, now, m)
+        if change is not None:
+            (var_n, var_e), interval_s = change
+            self._vel_noise.add(var_n, var_e, interval_s)
 
     def _measure_position_noise(
         self, fix: GnssFix, t_e: float, m: Measurement, sig_pos: Array
@@ -1684,20 +1681,30 @@ class EkfEngine:
         noise for tilt (6 frames 0.31 deg off with 0.07 stated: `field` seed 840,
         `gnss-1hz+pos-white`). The change, not the innovation: a fix's wander, or a jump
         the filter has not yet followed, is no white noise."""
+        quality = int(fix.quality)
+        now = (t_e, float(m.z[0]), float(m.z[1]))
+        last, self._pos_innovation = self._pos_innovation, (quality, now)
+        change = self._innovation_change(last[1] if last and last[0] == quality else None, now, m)
+        if change is not None:
+            fix_var_m2 = 0.5 * (float(sig_pos[0]) ** 2 + float(sig_pos[1]) ** 2)
+            self._pos_noise.add(quality, change[0], change[1], fix_var_m2)
+
+    def _innovation_change(
+        self, last: tuple[float, float, float] | None, now: tuple[float, float, float],
+        m: Measurement,
+    ) -> tuple[tuple[float, float], float] | None:  # fmt: skip
+        """The change of ``m``'s horizontal innovation ``now`` since ``last`` (each epoch
+        time s, north, east) as a sample of the receiver's white variance per axis: half its
+        square (two fixes' errors) less the filter's share of one innovation (H P H^T's
+        diagonal); and the interval, s. None unless the two epochs are a pair (within
+        :data:`INNOVATION_PAIR_MAX_S`)."""
+        if last is None or not 0.0 < now[0] - last[0] <= INNOVATION_PAIR_MAX_S:
+            return None
         assert self._p is not None
         hph = m.h @ self._p @ m.h.T
-        quality = int(fix.quality)
-        z_n, z_e = float(m.z[0]), float(m.z[1])
-        last, self._pos_innovation = self._pos_innovation, (t_e, quality, z_n, z_e)
-        if last is None or last[1] != quality or not 0.0 < t_e - last[0] <= INNOVATION_PAIR_MAX_S:
-            return
-        dz_n, dz_e = z_n - last[2], z_e - last[3]
-        self._pos_noise.add(
-            quality,
-            (0.5 * dz_n * dz_n - hph.item(0, 0), 0.5 * dz_e * dz_e - hph.item(1, 1)),
-            t_e - last[0],
-            0.5 * (float(sig_pos[0]) ** 2 + float(sig_pos[1]) ** 2),
-        )
+        dz_n, dz_e = now[1] - last[1], now[2] - last[2]
+        var_ne = (0.5 * dz_n * dz_n - hph.item(0, 0), 0.5 * dz_e * dz_e - hph.item(1, 1))
+        return var_ne, now[0] - last[0]
 
     def _measure_velocity_noise_at_rest(self, fix: GnssFix, t_e: float) -> None:
         """Feed the receiver's velocity noise with an RTK fixed epoch at rest before the
