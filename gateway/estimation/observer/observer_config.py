@@ -121,8 +121,9 @@ class ObserverConfig:
     # quality's default scaled by HDOP and age of corrections) against dead reckoning
     gnss_error_correlation_s: float = 60.0  # fix errors wander (multipath, atmosphere)
     gnss_white_share: float = 0.3  # share of a fix's sigma that is white epoch to epoch
-    # velocity error of dead reckoning besides the fix's own velocity sigma: lever-arm rate
-    # noise (0.8 cm/s on a 3 m mast), latency (10 ms at 1 m/s^2), attitude in the lever arm
+    # error of a fix's reference-point velocity besides its own sigma and the antenna lever
+    # arm's rate noise (0.8 cm/s on a 3 m mast): latency (10 ms at 1 m/s^2), attitude in the
+    # lever arm; weighed against the inertial velocity in the position channel
     dr_velocity_floor_mps: float = 0.01
     # a position innovation beyond glitch_sigma x its 1-sigma (the fix's, GST or the
     # quality's default, and the dead reckoning's) plus position_gate_m is a glitch: rejected,

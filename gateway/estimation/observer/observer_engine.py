@@ -138,6 +138,9 @@ RECENT_ROWS = 64
 #: integrator) needs a firm loop whatever the fix's sigma: weighed by a float fix's 0.4 m, it
 #: drifted 60 m in a float spell.
 HEIGHT_LOOP_TAU_S = 0.3
+#: Velocity variance per horizontal axis of a position set without a velocity, m^2/s^2: a
+#: field vehicle's speed is unknown to a few m/s; the next epoch's velocity takes over.
+UNKNOWN_VELOCITY_VAR_M2PS2 = 9.0
 #: Before the heading is known, how long after a rest the tilt loop runs on the speed along
 #: body x in the direction taken leaving the rest, s (a wheeled vehicle reverses only
 #: through a stop); after it each epoch checks the direction against the inertial velocity
@@ -244,6 +247,7 @@ class ObserverEngine:
         self._t_height_epoch_s: float | None = None  # last epoch whose height was used
         self._position = PositionChannel(cfg.gnss_error_correlation_s, cfg.gnss_white_share)
         self._t_position_s = 0.0  # epoch time the position channel was predicted to
+        self._sf_position_ne = (0.0, 0.0)  # the f_p integral (north, east) then, m/s
         self._l_imu_f = tuple(float(x) for x in cfg.imu_lever_arm_m)
         self._l_imu_ant_m = math.dist(self._l_ant_f, self._l_imu_f)  # antenna to IMU, m
         self._courses = CourseAlignment(cfg.heading_gate_deg * DEG_TO_RAD)
@@ -1907,14 +1911,16 @@ class ObserverEngine:
         channel.set_fix(
             fix.quality, sigma_ned, self._track.noise.white_share(int(fix.quality), sigma_ned[:2])
         )
+        var_v = self._fix_velocity_var(fix)
         if not self._nav_valid:
             age = self._t_s - t_e
             vn, ve = v_ref_ne if v_ref_ne is not None else (0.0, 0.0)
             self._v_ned_mps = [vn, ve, 0.0]
             self._p_ned_m = [p_ref[0] + vn * age, p_ref[1] + ve * age, p_ref[2]]
-            channel.reset()
+            channel.reset(var_v if v_ref_ne is not None else UNKNOWN_VELOCITY_VAR_M2PS2)
             self._nav_valid = True
             self._t_height_epoch_s = self._t_position_s = t_e
+            self._sf_position_ne = (row[_SF_N], row[_SF_E])
             self._lever_anchor = None
             self._settle_lever(self._platform(), velocity_reset=True)
             return
@@ -1926,7 +1932,7 @@ class ObserverEngine:
             v[2] - (sf[2] - row[_SF_D]) - GRAVITY_MPS2 * age,
         ]
         dp = [p_ref[i] - (p[i] - 0.5 * (v[i] + v_e[i]) * age) for i in range(3)]
-        self._predict_position(fix, t_e)
+        self._predict_position(t_e, row)
         # the time since the height was last corrected: the loop's velocity correction is
         # the height residual over it (capped at an epoch interval, a span of rejected
         # heights made it 20 times too large; at 1 Hz each reset then tripled the vertical
@@ -1937,21 +1943,30 @@ class ObserverEngine:
         # a position rejected for its horizontal part (a jump, a drift) whose height agrees:
         # the height loop keeps it (open, the height ran 18 m off in a minute's rejections)
         height_only = verdict == "reject" and abs(dp[2]) <= self._height_gate_m(t_e)
-        corr = (0.0, 0.0, 0.0)
+        corr = [0.0, 0.0, 0.0]
         k_d = height_loop_gain(since_s)
         if verdict == "use":
-            c_n, c_e = channel.update(dp)
-            corr = (c_n, c_e, k_d * dp[2])
+            corr[2] = k_d * dp[2]
         elif height_only:
             channel.height_taken()
-            corr = (0.0, 0.0, k_d * dp[2])
+            corr[2] = k_d * dp[2]
         elif verdict == "reset":
             channel.reset()
-            corr, k_d = (dp[0], dp[1], dp[2]), 1.0
-        dv = [0.0, 0.0, 0.0]
+            corr, k_d = [dp[0], dp[1], dp[2]], 1.0
+        # The velocity: the fix's against the inertial one, both the reference point's (the
+        # state integrates the IMU point less the lever-arm velocity of its last anchor, the
+        # fix's is taken at this epoch's), weighed by the channel with the position
+        shift = (0.0, 0.0)
+        dzv = None
         if v_ref_ne is not None:
-            dv[0] = v_ref_ne[0] - v_e[0]
-            dv[1] = v_ref_ne[1] - v_e[1]
+            a = self._lever_anchor
+            lever = self._lever_v_ned_mps
+            shift = (lever[0], lever[1]) if a is None else (lever[0] - a[3], lever[1] - a[4])
+            dzv = (v_ref_ne[0] - (v_e[0] - shift[0]), v_ref_ne[1] - (v_e[1] - shift[1]))
+        c_p, c_v = channel.update(dp if verdict == "use" else None, dzv, var_v)
+        corr[0] += c_p[0]
+        corr[1] += c_p[1]
+        dv = [c_v[0] - shift[0], c_v[1] - shift[1], 0.0]
         if since_s > 0.0:
             # alpha-beta form of the critically damped loop: beta = alpha^2 / 4 (alpha * the
             # correction alpha dz) stays stable with alpha <= 1 whatever the epoch interval
@@ -2010,23 +2025,39 @@ class ObserverEngine:
         h, d, _ = DEFAULT_GNSS_SIGMAS[int(FixQuality.GNSS)]
         return (h, h, d)
 
-    def _predict_position(self, fix: GnssFix, t_e: float) -> None:
-        """Grow the position channel's variance over the dead reckoning since its last epoch.
+    def _predict_position(self, t_e: float, row: _Row) -> None:
+        """Grow the position channel's variances over the dead reckoning since its last
+        epoch (``row`` the history at ``t_e``).
 
-        Per horizontal axis: the GNSS-reset velocity's error (the fix's velocity sigma plus
-        ``dr_velocity_floor_mps``) times the interval, plus, for the inertial part, the
-        acceleration error of the tilt (g sigma_tilt, accelerometer bias included) over the
-        interval squared / 2: 0.1 mm over a 0.1 s epoch, metres over a 20 s outage.
+        The inertial velocity's error per horizontal axis walks with the platform's
+        acceleration error (g times :meth:`_platform_tilt_var`'s sigma, and what the loop's
+        recent corrections show beyond the model, as the stated tilt has it), correlated over
+        the tilt loop's time constant tau: as white noise of density 2 (g sigma)^2 tau,
+        which over an epoch shorter than tau is more than the tilt's own (g sigma T)^2.
+        Each epoch adds the heading's error times the inertial velocity change since the
+        last (a turn's change rotated by sigma_psi) and what the IMU lever arm's velocity,
+        taken from the gyro at each epoch, puts in twice (now and at the last epoch).
         """
         interval_s = t_e - self._t_position_s
         if interval_s <= 0.0:
             return
         self._t_position_s = t_e
-        sigma_v = math.hypot(
-            fix_velocity_sigma_mps(fix, self._gnss_vel_sigma_mps()), self.cfg.dr_velocity_floor_mps
-        )
-        sigma_a = GRAVITY_MPS2 * self._sigma_tilt_rad(0.0)
-        self._position.predict(interval_s, sigma_v * interval_s + 0.5 * sigma_a * interval_s**2)
+        sf_n, sf_e = self._sf_position_ne
+        self._sf_position_ne = (row[_SF_N], row[_SF_E])
+        excess = self._corrections.excess_rad(self._gyro_arw, math.sqrt(self._model_tilt_var(0.0)))
+        var_a = GRAVITY_MPS2**2 * (self._platform_tilt_var(0.0) + excess * excess)
+        q_acc = 2.0 * var_a * self._tilt_loop.tau_now_s
+        turned = self._heading.sigma_psi_at(t_e) * math.hypot(row[_SF_N] - sf_n, row[_SF_E] - sf_e)
+        var_v = turned * turned + 2.0 * self._lever_sigma_mps() ** 2
+        self._position.predict(interval_s, q_acc, var_v)
+
+    def _fix_velocity_var(self, fix: GnssFix) -> float:
+        """Variance per horizontal axis of the fix's reference-point velocity, m^2/s^2: the
+        fix's (:func:`fix_velocity_sigma_mps`), ``dr_velocity_floor_mps`` and the antenna
+        lever arm's rate noise."""
+        sigma_v = fix_velocity_sigma_mps(fix, self._gnss_vel_sigma_mps())
+        floor, lever = self.cfg.dr_velocity_floor_mps, self._ant_lever_sigma_mps()
+        return sigma_v * sigma_v + floor * floor + lever * lever
 
     def _height_gate_m(self, t_e: float) -> float:
         """The height residual's gate at epoch ``t_e``: ``glitch_sigma`` x its 1-sigma +
@@ -2357,24 +2388,33 @@ class ObserverEngine:
         - the tilt the accel-bias filter's recent corrections left, until the loop follows;
         - the IMU mounting's own roll/pitch 1-sigma (an estimated mounting is not exact).
         """
-        tau = self._tilt_loop.tau_now_s
         g = GRAVITY_MPS2
-        sigma_bg = self._sigma_bg_rps()
-        sigma_ba = self._sigma_ba_mps2()
-        sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
         obs = self._observer
         c = obs.c_bp9 if obs is not None else (0.0,) * 9
         sin2_tilt = c[2] * c[2] + c[5] * c[5]  # body z's horizontal part, squared
         return (
+            self._platform_tilt_var(open_s)
+            + (self._sigma_ba_mps2() / g) ** 2
+            + sin2_tilt * (self._sigma_baz_mps2() / g) ** 2
+            + self._mounting_var
+        )
+
+    def _platform_tilt_var(self, open_s: float) -> float:
+        """The part of :meth:`_model_tilt_var` that is an error of the platform's specific
+        force, which the velocities are integrated with: not the accelerometer biases' and
+        the mounting's, which the loop's tilt makes up for (it turns the platform until C f
+        agrees with the GNSS velocities: an x/y bias error delta_b leaves the tilt
+        delta_b / g off the truth and the acceleration right)."""
+        tau = self._tilt_loop.tau_now_s
+        sigma_bg = self._sigma_bg_rps()
+        sigma_v = math.sqrt(0.5 * self._e_var_mps4) * self._epoch_interval_s
+        return (
             self._noise_tilt_var
             + self._tilt_loop.velocity_tilt_sigma(sigma_v, self._epoch_interval_s) ** 2
             + (sigma_bg * tau) ** 2
-            + (sigma_ba / g) ** 2
-            + sin2_tilt * (self._sigma_baz_mps2() / g) ** 2
             + self._coast_drift_rad(open_s) ** 2
             + self._sigma_level_rad**2
-            + (math.hypot(*self._ba_tilt_ne) / g) ** 2
-            + self._mounting_var
+            + (math.hypot(*self._ba_tilt_ne) / GRAVITY_MPS2) ** 2
         )
 
 
