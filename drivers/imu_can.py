@@ -62,7 +62,10 @@ n is stamped ``offset + n dt - bridge_latency_s``. What is decided when, and why
 Pairing: a half (IMU_GYRO or IMU_ACCEL) waits ``pair_timeout_s`` of arrival time for its
 partner, but at least 2 more frames (a stall may fall between the two frames of a sample) and at
 most 256 frames (a burst squeezes arrival times; a stale half must not meet the same SEQ one
-wrap later).
+wrap later). A sample's arrival is its earlier half's; halves stamped more than
+``pair_timeout_s`` apart with the earlier the farther from the stream's next arrival have a
+stamp no stall can make (a corrupted log line): the later is taken, and counted
+(``bad_stamps``).
 """
 
 from __future__ import annotations
@@ -199,6 +202,7 @@ class WarningKind(Enum):
     REANCHOR = "time re-anchored"
     CLOCK_STEP = "host clock step"
     SEQ = "SEQ discontinuity"
+    BAD_STAMP = "frame stamped before its partner"
 
 
 _GYRO, _ACCEL = ImuFrame.GYRO, ImuFrame.ACCEL  # read per frame: no Enum attribute lookups
@@ -523,6 +527,8 @@ class ImuDecoder:
         order)."""
         dec = g[_DEC]
         a = t_accel if t_accel < t_gyro else t_gyro  # min(t_gyro, t_accel), which is slower
+        if abs(t_gyro - t_accel) > self.config.pair_timeout_s and self._dec is not None:
+            a = self._earlier_stamp_checked(seq, a, t_gyro + t_accel - a)
         c = self.counters
         if dec != self._dec:
             start = self._dec is None
@@ -596,6 +602,27 @@ class ImuDecoder:
         dt = self._dt
         t = self._offset + n * dt - self._latency
         return _new_sample(t, dt, w_ib_b, f_ib_b, seq, alarm, saturated, stuck, self._gap_late)
+
+    def _earlier_stamp_checked(self, seq: int, earlier: float, later: float) -> float:
+        """The arrival of sample ``seq`` whose two frames are stamped more than
+        ``pair_timeout_s`` apart, ``earlier`` and ``later``. A stall between them delays the
+        second: the earlier is the arrival, unless it is the farther from the stream's next
+        (the last arrival + dt). A stall cannot advance a frame, so that stamp is not its
+        arrival (a corrupted log line: one digit of a candump time took the host clock for
+        stepped back 48 years, and every GNSS epoch after it missed the IMU's time line):
+        the later is taken, counted and warned."""
+        expected = self._a_last + self._dt
+        if abs(later - expected) >= abs(earlier - expected):
+            return earlier
+        self.counters.bad_stamps += 1
+        self._warn(
+            WarningKind.BAD_STAMP,
+            later,
+            f"IMU frame of SEQ {seq} stamped {later - earlier:.3f} s before its partner and "
+            f"{expected - earlier:.3f} s before the stream's next: its partner's time taken; "
+            f"expected the two frames of a sample within {self.config.pair_timeout_s} s",
+        )
+        return later
 
     def _on_stuck(self, seq: int, a: float) -> None:
         checks = self._checks

@@ -193,3 +193,4 @@ class ImuCounters:
     clock_steps: int = 0  # steps of the host clock found (drivers.host_clock)
     seq_errors: int = 0  # samples on time for the next SEQ but carrying another: taken as it
     seq_restarts: int = 0  # the bridge's SEQ counter restarted: counted from its new value
+    bad_stamps: int = 0  # frames stamped before their partner by more than a stall can explain

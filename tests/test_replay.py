@@ -69,6 +69,30 @@ def test_damaged_logs_are_counted_not_fatal(run_dir: Path, tmp_path: Path) -> No
     assert summary.stats.frames_out > 0
 
 
+def test_a_frame_stamped_decades_early_changes_no_output(run_dir: Path, tmp_path: Path) -> None:
+    """One candump line whose time lost a digit (1700000009.98 -> 170000009.98: 48 years
+    early), as a flipped byte on a copied log makes it. The decoder took it for a host
+    clock stepped back and moved every GNSS time after it by as much: the replay stated
+    the tilt on 117 frames of 3,573 (`short` seed 11, 1 Hz). Its partner frame's time is
+    the sample's: the output is the clean log's, byte for byte."""
+    lines = (run_dir / "imu.log").read_text().splitlines(keepends=True)
+    i = next(k for k, line in enumerate(lines) if k > 4000 and " 0CFF1080#" in line)
+    stamp_s = lines[i][1 : lines[i].index(")")]
+    assert stamp_s.startswith("1700000")
+    damaged = tmp_path / "imu.log"
+    damaged.write_text(
+        "".join(
+            [*lines[:i], "(" + stamp_s.replace("0", "", 1) + lines[i][len(stamp_s) + 1 :]]
+            + lines[i + 1 :]
+        )
+    )
+    clean = replay(run_dir / "imu.log", run_dir / "gnss.nmea", tmp_path / "clean.log")
+    summary = replay(damaged, run_dir / "gnss.nmea", tmp_path / "damaged.log")
+    assert summary.stats.imu_samples == clean.stats.imu_samples
+    assert (tmp_path / "damaged.log").read_bytes() == (tmp_path / "clean.log").read_bytes()
+    assert (summary.imu.bad_stamps, summary.imu.clock_steps) == (1, 0)
+
+
 def test_decoding_ahead_tells_each_loss_on_the_bus_when_live_would(
     run_dir: Path, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

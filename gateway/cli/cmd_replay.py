@@ -68,7 +68,8 @@ def summary_text(s: ReplaySummary) -> str:
             f"  IMU:  {s.stats.imu_samples} samples, {imu.lost} lost, {imu.duplicates} duplicate, "
             f"{imu.out_of_order} out of order, {imu.malformed} malformed frames, "
             f"{imu.saturated} saturated, {imu.stuck} stuck, {s.bad_can_lines} bad log lines"
-            + (f"; {n} host clock step(s) taken out (see above)" if (n := imu.clock_steps) else ""),
+            + (f"; {n} host clock step(s) taken out (see above)" if (n := imu.clock_steps) else "")
+            + (f"; {n} frame(s) stamped before their partner" if (n := imu.bad_stamps) else ""),
             f"  GNSS: {s.stats.gnss_fixes} fixes, {gnss.checksum_errors} checksum errors, "
             f"{gnss.parse_errors} parse errors, {gnss.skipped_bytes} junk bytes, "
             f"{s.bad_nmea_lines} bad log lines",
