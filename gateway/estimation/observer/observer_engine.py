@@ -2044,12 +2044,16 @@ class ObserverEngine:
         self._t_position_s = t_e
         sf_n, sf_e = self._sf_position_ne
         self._sf_position_ne = (row[_SF_N], row[_SF_E])
-        excess = self._corrections.excess_rad(self._gyro_arw, math.sqrt(self._model_tilt_var(0.0)))
-        var_a = GRAVITY_MPS2**2 * (self._platform_tilt_var(0.0) + excess * excess)
-        q_acc = 2.0 * var_a * self._tilt_loop.tau_now_s
         turned = self._heading.sigma_psi_at(t_e) * math.hypot(row[_SF_N] - sf_n, row[_SF_E] - sf_e)
         var_v = turned * turned + 2.0 * self._lever_sigma_mps() ** 2
-        self._position.predict(interval_s, q_acc, var_v)
+        self._position.predict(interval_s, self._velocity_walk_q(), var_v)
+
+    def _velocity_walk_q(self) -> float:
+        """Density of the inertial velocity's walk per horizontal axis, m^2/s^3
+        (:meth:`_predict_position`)."""
+        excess = self._corrections.excess_rad(self._gyro_arw, math.sqrt(self._model_tilt_var(0.0)))
+        var_a = GRAVITY_MPS2**2 * (self._platform_tilt_var(0.0) + excess * excess)
+        return 2.0 * var_a * self._tilt_loop.tau_now_s
 
     def _fix_velocity_var(self, fix: GnssFix) -> float:
         """Variance per horizontal axis of the fix's reference-point velocity, m^2/s^2: the
@@ -2200,12 +2204,21 @@ class ObserverEngine:
 
     def _dead_reckoning_output(self, coasting_s: float) -> tuple[bool, bool]:
         """(position sent, within COASTING's accuracy): :func:`dead_reckoning_output` with the
-        1-sigma of :class:`CoastBudget`."""
-        budget = self._coast_budget
-        if coasting_s <= 0.0 or budget is None:
+        1-sigma of :class:`CoastBudget`, or, while velocities still come and only positions
+        do not (the GGA lost, RMC and VTG through), the position channel's grown over the
+        time since its last epoch at the inertial velocity's walk: the channel takes no
+        velocity without a position, so the state dead-reckons on its own. Without that,
+        40 s of GGA lost on `short` seed 11 sent 1,043 positions COASTING up to metres off
+        (beyond 3 x ``coast_sigma_m``), with no budget to withhold them."""
+        if coasting_s <= 0.0:
             return True, True
-        v = self._v_ned_mps
-        sigma_h = budget.sigma_h_m(coasting_s, math.hypot(v[0], v[1]))
+        budget = self._coast_budget
+        if self._coasting and budget is not None:
+            v = self._v_ned_mps
+            sigma_h = budget.sigma_h_m(coasting_s, math.hypot(v[0], v[1]))
+        else:
+            tau = (self._t_s or self._t_position_s) - self._t_position_s
+            sigma_h = self._position.sigma_h_after_m(tau, self._velocity_walk_q())
         return dead_reckoning_output(coasting_s, sigma_h, self.cfg)
 
     def _mode(self, coasting_s: float, coast_within_accuracy: bool) -> Mode:

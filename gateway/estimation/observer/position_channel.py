@@ -230,6 +230,14 @@ class PositionChannel:
         ax = self._axes
         return (math.sqrt(ax[0].p_pp), math.sqrt(ax[1].p_pp))
 
+    def sigma_h_after_m(self, interval_s: float, q_acc: float) -> float:
+        """Horizontal 1-sigma (root sum of north and east) of the position error
+        ``interval_s`` after the last epoch, its velocity error walking with ``q_acc``
+        (m^2/s^3) meanwhile, m: what :meth:`predict` would make of it."""
+        t = interval_s
+        var = sum(a.p_pp + t * (2.0 * a.p_pv + t * a.p_vv) + q_acc * t**3 / 3.0 for a in self._axes)
+        return math.sqrt(var)
+
     def sigma_v_ne_mps(self) -> tuple[float, float]:
         """Velocity 1-sigma north, east of the engine's reference point."""
         ax = self._axes
