@@ -848,6 +848,20 @@ def no_fix_sentence(sentence: str) -> str | None:
     return nmea_sentence(",".join(fields))
 
 
+def rewritten_nmea(
+    src: Path, dst: Path, truth: Truth, keep: Callable[[float, str], str | None]
+) -> Path:
+    """``src``'s NMEA log ("(host time) sentence" lines) written to ``dst`` with each
+    sentence replaced by ``keep(run time s, sentence)`` (None: left out)."""
+    with src.open() as lines, dst.open("w") as out:
+        for line in lines:
+            stamp, sentence = line.split(" ", 1)
+            kept = keep(float(stamp[1:-1]) - float(truth.t[0]), sentence.strip())
+            if kept is not None:
+                out.write(f"{stamp} {kept}\n")
+    return dst
+
+
 @pytest.mark.parametrize("engine", [Engine.OBSERVER, Engine.EKF])
 @pytest.mark.parametrize(
     ("span", "no_fix"),
@@ -871,14 +885,13 @@ def test_gnss_without_a_fix_while_parked_then_driving_off_is_not_taken_for_rest(
     on `slope-start` seed 623)."""
     run = generate(SCENARIOS["short"], tmp_path / "run", seed=3)
     truth = Truth.load(run.truth_file)
-    gnss_log = tmp_path / "gnss.nmea"
-    with run.gnss_log.open() as lines, gnss_log.open("w") as out:
-        for line in lines:  # "(host time) sentence"
-            stamp, sentence = line.split(" ", 1)
-            if not span[0] <= float(stamp[1:-1]) - float(truth.t[0]) < span[1]:
-                out.write(line)
-            elif no_fix and (sent := no_fix_sentence(sentence.strip())) is not None:
-                out.write(f"{stamp} {sent}\n")
+
+    def within_span(t_s: float, sentence: str) -> str | None:
+        if not span[0] <= t_s < span[1]:
+            return sentence
+        return no_fix_sentence(sentence) if no_fix else None
+
+    gnss_log = rewritten_nmea(run.gnss_log, tmp_path / "gnss.nmea", truth, within_span)
     out_log = tmp_path / "out.log"
     replay(run.imu_log, gnss_log, out_log, load_config(run.config_file).with_engine(engine))
     assert implausible_frames(decode_log(out_log), truth, status=status_modes(out_log)) == []
@@ -904,12 +917,11 @@ def test_positions_lost_while_velocities_come_are_dead_reckoned_within_their_mod
     velocities, stays within 7 cm."""
     run = generate(SCENARIOS["short"], tmp_path / "run", seed=11)
     truth = Truth.load(run.truth_file)
-    gnss_log = tmp_path / "gnss.nmea"
-    with run.gnss_log.open() as lines, gnss_log.open("w") as out:
-        for line in lines:  # "(host time) sentence"
-            stamp, sentence = line.split(" ", 1)
-            if "GGA" not in sentence or not 60.0 < float(stamp[1:-1]) - truth.t[0] < 100.0:
-                out.write(line)
+
+    def without_gga(t_s: float, sentence: str) -> str | None:
+        return None if "GGA" in sentence and 60.0 < t_s < 100.0 else sentence
+
+    gnss_log = rewritten_nmea(run.gnss_log, tmp_path / "gnss.nmea", truth, without_gga)
     out_log = tmp_path / "out.log"
     replay(run.imu_log, gnss_log, out_log, load_config(run.config_file).with_engine(engine))
     checked, beyond = position_beyond_mode(out_log, truth)
